@@ -1,0 +1,20 @@
+"""gym-fetch-v2: the Fetch manipulation suite on modern MuJoCo; `import fetch` registers its ids."""
+
+from __future__ import annotations
+
+from fetch._gl import choose_gl_backend
+
+choose_gl_backend()  # before anything imports mujoco
+
+import gymnasium as _gym  # noqa: E402
+
+from fetch.errors import FetchError, UnknownNameError  # noqa: E402
+from fetch.tasks import ENV_IDS, REGISTRATIONS  # noqa: E402
+
+__version__ = "0.1.0"
+__all__ = ["ENV_IDS", "FetchError", "UnknownNameError", "__version__"]
+
+for _reg in REGISTRATIONS:
+    if _reg.env_id not in _gym.registry:
+        _gym.register(id=_reg.env_id, entry_point="fetch.env:FetchEnv",
+                      kwargs={"task": _reg.task.name}, max_episode_steps=_reg.max_episode_steps)

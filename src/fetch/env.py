@@ -1,0 +1,247 @@
+"""The Gymnasium env: one Fetch robot composed with one task."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import functools
+import math
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from fetch import observation as ob
+from fetch.errors import FetchError, UnknownNameError
+from fetch.robot import N_SUBSTEPS, Robot, build_spec
+from fetch.tasks import task_class
+from fetch.tasks.base import Task, goal_distance
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+"""What `get_state` saves: everything `mj_step` reads (qpos, qvel, act, ctrl, mocap, warm start, time)."""
+
+RENDER_MODES = ("human", "rgb_array", "depth_array")
+REWARD_TYPES = ("sparse", "dense")
+SETTLE_STEPS = 50
+"""Control steps the arm is given at construction to settle at its start pose."""
+
+
+@dataclasses.dataclass(frozen=True)
+class _Compiled:
+    model: mujoco.MjModel
+    start_state: np.ndarray
+    grip_start: np.ndarray
+
+
+@functools.cache
+def _compile(task_type: type[Task]) -> _Compiled:
+    """Build, compile and settle a task's scene once per process; envs copy the result."""
+    task = task_type()
+    spec = build_spec(task_type.robot)
+    task.build(spec)
+    ob.add_sensors(spec, task_type.parts)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    robot = Robot(task_type.robot, model)
+    task.bind(model)
+    mujoco.mj_forward(model, data)
+    robot.set_target(data, robot.start_target(model))
+    for _ in range(SETTLE_STEPS):
+        mujoco.mj_step(model, data, nstep=N_SUBSTEPS)
+    data.qvel[:] = 0.0
+    data.time = 0.0
+    mujoco.mj_forward(model, data)
+    # Start with the target exactly where the settled grip is, so nothing moves at a zero action.
+    robot.set_target(data, data.site_xpos[robot.grip_site].copy())
+    state = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
+    mujoco.mj_getState(model, data, state, STATE_SPEC)
+    return _Compiled(model, state, data.site_xpos[robot.grip_site].copy())
+
+
+class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
+    """A goal-conditioned Fetch manipulation env (Gymnasium API, observations as a Dict).
+
+    Action: Box(-1, 1, (4,)): dx, dy, dz move the gripper's target by up to 5 cm per step
+    (world frame); a[3] opens (+1) or closes (-1) the fingers. dt = 0.04 s.
+    `model`, `data` are the MjModel / MjData; `observation_layout` names the observation's slices.
+    """
+
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": int(round(1.0 / (0.002 * N_SUBSTEPS)))}
+
+    def __init__(self, task: str = "pick_place", reward_type: str = "sparse",
+                 render_mode: str | None = None, width: int = 480, height: int = 480,
+                 camera_name: str = "front", hide_goal: bool = False) -> None:
+        if reward_type not in REWARD_TYPES:
+            raise UnknownNameError("reward_type", reward_type, REWARD_TYPES)
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise UnknownNameError("render_mode", render_mode, RENDER_MODES)
+        if int(width) <= 0 or int(height) <= 0:
+            raise FetchError(f"width and height must be positive pixels, got {width}x{height}")
+        self._kwargs = dict(task=task, reward_type=reward_type, render_mode=render_mode,
+                            width=int(width), height=int(height), camera_name=camera_name,
+                            hide_goal=hide_goal)
+        compiled = _compile(task_class(task))
+        self.task: Task = task_class(task)()
+        self.model: mujoco.MjModel = copy.copy(compiled.model)
+        self.data = mujoco.MjData(self.model)
+        self.robot = Robot(self.task.robot, self.model)
+        self.task.bind(self.model)
+        self._start_state = compiled.start_state
+        self._grip_start = compiled.grip_start
+        cameras = [self.model.camera(i).name for i in range(self.model.ncam)]
+        if camera_name not in cameras:
+            raise UnknownNameError("camera", camera_name, cameras)
+        self.reward_type = reward_type
+        self.render_mode = render_mode
+        self.width, self.height = int(width), int(height)
+        self.camera_name, self.hide_goal = camera_name, hide_goal
+        self._renderer: Any = None
+        self._viewer: Any = None
+        self._goal_mocap = int(self.model.body_mocapid[
+            mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "goal")])
+
+        self._observer = ob.Observer(self.model, self.task.parts)
+        self.observation_layout: dict[str, slice] = dict(self._observer.layout)
+        self._achieved = self.observation_layout[self.task.achieved]
+        goal_size = self._achieved.stop - self._achieved.start
+        box = functools.partial(gym.spaces.Box, -np.inf, np.inf, dtype=np.float64)
+        self.observation_space = gym.spaces.Dict({
+            "observation": box(shape=(self._observer.size,)),
+            "achieved_goal": box(shape=(goal_size,)),
+            "desired_goal": box(shape=(goal_size,)),
+        })
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+        self._state_buf = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
+        mujoco.mj_setState(self.model, self.data, self._start_state, STATE_SPEC)
+        mujoco.mj_forward(self.model, self.data)
+
+    # -- Gymnasium API -------------------------------------------------------------------
+
+    @property
+    def dt(self) -> float:
+        """[s] the control period."""
+        return float(self.model.opt.timestep) * N_SUBSTEPS
+
+    @property
+    def goal(self) -> np.ndarray:
+        """The current goal (a copy); it lives in MjData as the goal marker's mocap position."""
+        return self.data.mocap_pos[self._goal_mocap].copy()
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        super().reset(seed=seed)
+        mujoco.mj_setState(self.model, self.data, self._start_state, STATE_SPEC)
+        goal = self.task.reset(self.model, self.data, self.np_random, self._grip_start)
+        self.data.mocap_pos[self._goal_mocap] = goal
+        mujoco.mj_forward(self.model, self.data)
+        obs, info = self._observe()
+        if self.render_mode == "human":
+            self.render()
+        return obs, info
+
+    def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool,
+                                                dict[str, Any]]:
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (4,):
+            raise ValueError(f"action must have shape (4,), got {a.shape}")
+        values = a.tolist()
+        if not all(map(math.isfinite, values)):
+            raise ValueError(f"action {values} is not finite; a NaN or inf would make the "
+                             "simulation unstable (valid: finite values, clipped to [-1, 1])")
+        m, d = self.model, self.data
+        self.robot.apply(d, [min(max(v, -1.0), 1.0) for v in values])
+        mujoco.mj_step(m, d, nstep=N_SUBSTEPS)
+        obs, info = self._observe()
+        if self.reward_type == "sparse":
+            reward = info["is_success"] - 1.0
+        else:
+            reward = -info["distance"]
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, False, False, info
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
+                       info: Any = None) -> np.ndarray:
+        """Sparse: 0 where the goal is reached else -1; dense: -distance [m]. Vectorised."""
+        if self.reward_type == "sparse":
+            return self.task.is_success(achieved_goal, desired_goal) - 1.0
+        return -goal_distance(achieved_goal, desired_goal)
+
+    def _observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        m, d = self.model, self.data
+        # Refresh only what the sensors read (mj_step leaves positions one substep stale), so
+        # the observation is a function of the state alone.
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_comVel(m, d)
+        mujoco.mj_sensorPos(m, d)
+        mujoco.mj_sensorVel(m, d)
+        vector = self._observer(d)
+        achieved = vector[self._achieved]
+        desired = d.mocap_pos[self._goal_mocap].copy()
+        a, g = achieved.tolist(), desired.tolist()
+        info: dict[str, Any] = {
+            "is_success": 1.0 if self.task.success(a, g) else 0.0,
+            "distance": math.dist(a, g),
+        }
+        info.update(self.task.facts(d, vector))
+        return {"observation": vector, "achieved_goal": achieved.copy(), "desired_goal": desired}, info
+
+    # -- MuJoCo state --------------------------------------------------------------------
+
+    def get_state(self) -> np.ndarray:
+        """The full integration state (`mj_getState`, mjSTATE_INTEGRATION), a fresh array."""
+        mujoco.mj_getState(self.model, self.data, self._state_buf, STATE_SPEC)
+        return self._state_buf.copy()
+
+    def set_state(self, state: np.ndarray) -> None:
+        """Restore a state from `get_state`; the goal comes back with it."""
+        state = np.asarray(state, dtype=np.float64)
+        if state.shape != self._state_buf.shape:
+            raise FetchError(f"state has shape {state.shape}; this env's states have shape "
+                             f"{self._state_buf.shape}")
+        mujoco.mj_setState(self.model, self.data, state, STATE_SPEC)
+        mujoco.mj_forward(self.model, self.data)
+
+    def observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """The observation and info of the current state (e.g. after `set_state`)."""
+        return self._observe()
+
+    # -- rendering -----------------------------------------------------------------------
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode= to gym.make")
+            return None
+        from fetch import rendering
+
+        if self.render_mode == "human":
+            if self._viewer is None:
+                self._viewer = rendering.HumanViewer(self.model, self.data, self.camera_name, self.hide_goal)
+            self._viewer.sync(self.dt)
+            return None
+        if self._renderer is None:
+            self._renderer = rendering.OffscreenRenderer(self.model, self.width, self.height)
+        return self._renderer.render(self.data, self.camera_name,
+                                     depth=self.render_mode == "depth_array", hide_goal=self.hide_goal)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+
+    # -- pickling: the same env, in the same state ----------------------------------------
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"kwargs": self._kwargs, "state": self.get_state(),
+                "rng": self.np_random.bit_generator.state, "rng_seed": self._np_random_seed}
+
+    def __setstate__(self, saved: dict[str, Any]) -> None:
+        self.__init__(**saved["kwargs"])  # type: ignore[misc]
+        self.set_state(saved["state"])
+        self.np_random.bit_generator.state = saved["rng"]
+        self._np_random_seed = saved["rng_seed"]

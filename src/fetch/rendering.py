@@ -1,0 +1,83 @@
+"""Offscreen rendering (rgb and depth) and the passive MuJoCo viewer for render_mode="human"."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from fetch.errors import FetchError
+
+GOAL_GROUP = 2
+"""Geom group holding only the goal marker; turned off to hide it."""
+
+
+def _scene_option(hide_goal: bool) -> mujoco.MjvOption:
+    option = mujoco.MjvOption()
+    option.geomgroup[GOAL_GROUP] = 0 if hide_goal else 1
+    return option
+
+
+class OffscreenRenderer:
+    """Renders the env's data from a named camera into an array, without a display."""
+
+    def __init__(self, model: mujoco.MjModel, width: int, height: int) -> None:
+        # The offscreen buffer must hold the image; this model is the env's own copy.
+        model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
+        model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
+        try:
+            self._renderer = mujoco.Renderer(model, height=height, width=width)
+        except Exception as exc:  # the GL backend's own error types vary
+            raise FetchError(
+                f"offscreen rendering failed with MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}: "
+                f"{exc}. On a headless machine import fetch before mujoco, or set MUJOCO_GL=egl "
+                "(or osmesa, after apt-get install libosmesa6)") from exc
+        self._options = {hide: _scene_option(hide) for hide in (False, True)}
+        self._depth = False
+
+    def render(self, data: mujoco.MjData, camera: str, depth: bool = False,
+               hide_goal: bool = False) -> np.ndarray:
+        """An (H, W, 3) uint8 image, or with depth=True an (H, W) float32 depth map [m]."""
+        if depth != self._depth:
+            if depth:
+                self._renderer.enable_depth_rendering()
+            else:
+                self._renderer.disable_depth_rendering()
+            self._depth = depth
+        self._renderer.update_scene(data, camera=camera, scene_option=self._options[hide_goal])
+        return self._renderer.render()
+
+    def close(self) -> None:
+        self._renderer.close()
+
+
+class HumanViewer:
+    """MuJoCo's passive viewer on a named camera, paced to real time."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, camera: str, hide_goal: bool) -> None:
+        if sys.platform == "linux" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            raise FetchError('render_mode="human" needs a display (none is set: DISPLAY is empty); '
+                             'use render_mode="rgb_array", or run under Xvfb (xvfb-run python ...)')
+        import mujoco.viewer
+
+        self._handle: Any = mujoco.viewer.launch_passive(model, data, show_left_ui=False,
+                                                         show_right_ui=False)
+        self._handle.cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        self._handle.cam.fixedcamid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+        self._handle.opt.geomgroup[GOAL_GROUP] = 0 if hide_goal else 1
+        self._last = time.perf_counter()
+
+    def sync(self, period: float) -> None:
+        """Show the current data; wait out what is left of `period` [s] since the last call."""
+        self._handle.sync()
+        wait = period - (time.perf_counter() - self._last)
+        if wait > 0:
+            time.sleep(wait)
+        self._last = time.perf_counter()
+
+    def close(self) -> None:
+        self._handle.close()

@@ -1,0 +1,123 @@
+"""What a task is (scene additions, observation parts, start and goal sampling, success)."""
+
+from __future__ import annotations
+
+import abc
+import math
+from typing import ClassVar
+
+import mujoco
+import numpy as np
+
+from fetch import observation as ob
+from fetch.robot import RobotConfig
+
+TABLE_TOP = 0.4
+"""[m] height of the table's surface in every task."""
+
+DISTANCE_THRESHOLD = 0.05
+"""[m] the classic success radius."""
+
+GRIP = "robot0:grip"
+FINGERS = ("robot0:r_gripper_finger_joint", "robot0:l_gripper_finger_joint")
+
+GRIPPER_PARTS: tuple[ob.Part, ...] = (
+    ob.site_pos("grip_pos", GRIP),
+    ob.joints("gripper_state", FINGERS),
+    ob.linvel("grip_velp", GRIP),
+    ob.joints("gripper_vel", FINGERS, velocity=True),
+)
+"""The classic Reach observation: 10 numbers."""
+
+
+def object_parts(obj: str, site: str) -> tuple[ob.Part, ...]:
+    """The classic 25-D object-task observation, with the object called `obj` observed at `site`."""
+    return (
+        ob.site_pos("grip_pos", GRIP),
+        ob.site_pos(f"{obj}_pos", site),
+        ob.rel_pos(f"{obj}_rel_pos", site, GRIP),
+        ob.joints("gripper_state", FINGERS),
+        ob.euler(f"{obj}_rot", site),
+        ob.linvel(f"{obj}_velp", site, ref=GRIP),
+        ob.angvel(f"{obj}_velr", site),
+        ob.linvel("grip_velp", GRIP),
+        ob.joints("gripper_vel", FINGERS, velocity=True),
+    )
+
+
+class Task(abc.ABC):
+    """One manipulation task: what it adds to the scene, how it starts, what success is.
+
+    A task holds no per-episode state: everything randomised at reset is written into MjData
+    (qpos, mocap), so a saved MuJoCo state restores the episode exactly.
+    """
+
+    name: ClassVar[str]
+    robot: ClassVar[RobotConfig] = RobotConfig()
+    parts: ClassVar[tuple[ob.Part, ...]]
+    achieved: ClassVar[str]
+    """the part that is the achieved goal."""
+
+    @abc.abstractmethod
+    def build(self, spec: mujoco.MjSpec) -> None:
+        """Add the task's objects and furniture to the scene."""
+
+    def bind(self, model: mujoco.MjModel) -> None:  # noqa: B027 (optional hook)
+        """Resolve names to ids once; later calls index with integers only."""
+
+    @abc.abstractmethod
+    def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
+              grip_start: np.ndarray) -> np.ndarray:
+        """Place objects and furniture in `data` (positions only, at rest) and return the goal [m]."""
+
+    def is_success(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
+        """1.0 where the goal is reached, else 0.0; vectorised over leading axes (for HER)."""
+        return (goal_distance(achieved, desired) < DISTANCE_THRESHOLD).astype(np.float64)
+
+    def success(self, achieved: list[float], desired: list[float]) -> bool:
+        """`is_success` for one goal in scalar math (it runs every step); a test holds them equal."""
+        return math.dist(achieved, desired) < DISTANCE_THRESHOLD
+
+    def facts(self, data: mujoco.MjData, obs: np.ndarray) -> dict[str, float]:
+        """Task-specific entries of `info`: the same keys at every step."""
+        return {}
+
+
+def goal_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """[m] Euclidean distance over the last axis."""
+    diff = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    return np.sqrt(np.sum(diff * diff, axis=-1))
+
+
+class FreeObject:
+    """A body on a free joint, placed at reset by writing its qpos."""
+
+    def __init__(self, model: mujoco.MjModel, body: str) -> None:
+        body_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+        joint = int(model.body_jntadr[body_id])
+        self.qpos = int(model.jnt_qposadr[joint])
+        self.qvel = int(model.jnt_dofadr[joint])
+
+    def place(self, data: mujoco.MjData, pos: np.ndarray, yaw: float = 0.0) -> None:
+        """Put the body at rest at `pos` [m], rotated by `yaw` [rad] about z."""
+        data.qpos[self.qpos:self.qpos + 3] = pos
+        data.qpos[self.qpos + 3:self.qpos + 7] = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+        data.qvel[self.qvel:self.qvel + 6] = 0.0
+
+
+def sample_clear_xy(rng: np.random.Generator, center: np.ndarray, half_range: float | np.ndarray,
+                    keep_out: list[tuple[np.ndarray, float]], tries: int = 1000) -> np.ndarray:
+    """A uniform xy point in center +- half_range at least r [m] from every (point, r) in keep_out."""
+    center = np.asarray(center, dtype=np.float64)[:2]
+    for _ in range(tries):
+        xy = center + rng.uniform(-half_range, half_range, size=2)
+        if all(math.hypot(*(xy - np.asarray(p)[:2])) >= r for p, r in keep_out):
+            return xy
+    raise RuntimeError(f"no clear spot near {center} after {tries} tries; the task's ranges are inconsistent")
+
+
+def box_geom(body: mujoco.MjsBody, name: str, half: list[float], pos: list[float],
+             material: str, **attrs: object) -> mujoco.MjsGeom:
+    """Add a box geom of half-sizes `half` [m] at `pos` [m] in the body's frame."""
+    return body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=half, pos=pos,
+                         material=material, **attrs)
