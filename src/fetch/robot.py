@@ -120,10 +120,13 @@ def build_spec(config: RobotConfig) -> mujoco.MjSpec:
         geom.group = 4
     for name, pos in CAMERAS.items():
         spec.worldbody.add_camera(name=name, pos=pos, fovy=45.0, quat=look_at(pos, CAMERA_TARGET))
-    gripper = spec.body("robot0:gripper_link")
-    # Looking down the fingers, image up = away from the robot.
-    gripper.add_camera(name="wrist", pos=[-0.06, 0.0, 0.0], fovy=75.0,
-                       quat=_axes_quat([0, -1, 0], [0, 0, 1]))
+    # In gripper_link's frame +x points down the fingers and -x is world up: the wrist camera
+    # sits 6 cm above and 9 cm behind the palm and looks past the fingertips.
+    spec.body("robot0:gripper_link").add_camera(
+        name="wrist", pos=[-0.06, 0.0, -0.09], fovy=70.0,
+        quat=look_at((-0.06, 0.0, -0.09), (0.06, 0.0, 0.05), up=(-1.0, 0.0, 0.0)))
+    # gymnasium-robotics' near-white table saturates under the lights; a light grey keeps texture.
+    spec.material("table_mat").rgba = [0.72, 0.72, 0.70, 1.0]
     return spec
 
 
@@ -136,11 +139,12 @@ CAMERAS = {
 """[m] the world cameras' positions; each looks at CAMERA_TARGET. `wrist` rides on the gripper."""
 
 
-def look_at(pos: tuple[float, float, float], target: tuple[float, float, float]) -> np.ndarray:
-    """The quaternion of a camera at `pos` looking at `target`, with the image's up towards +z."""
+def look_at(pos: tuple[float, float, float], target: tuple[float, float, float],
+            up: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> np.ndarray:
+    """The quaternion of a camera at `pos` looking at `target`, the image's up towards `up`."""
     forward = np.subtract(target, pos)
     forward /= np.linalg.norm(forward)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right = np.cross(forward, up)
     right /= np.linalg.norm(right)
     return _axes_quat(right, np.cross(right, forward))
 

@@ -1,0 +1,31 @@
+"""Shared fixtures: every registered env id, and envs closed after each test."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import gymnasium as gym
+import pytest
+
+import fetch
+
+ENV_IDS = list(fetch.ENV_IDS)
+
+
+@pytest.fixture(params=ENV_IDS)
+def env_id(request: pytest.FixtureRequest) -> str:
+    return str(request.param)
+
+
+@pytest.fixture
+def env(env_id: str) -> Iterator[gym.Env]:
+    made = gym.make(env_id)
+    yield made
+    made.close()
+
+
+def rollout_actions(env: gym.Env, n: int, seed: int = 0):
+    """`n` reproducible random actions in the env's action space."""
+    space = env.action_space
+    space.seed(seed)
+    return [space.sample() for _ in range(n)]
