@@ -399,7 +399,7 @@ def compare_table(ours: Subject, theirs: Subject, makes: dict[str, MakeTimes]) -
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--steps", type=int, default=200, help="env steps per rollout (default 200)")
-    p.add_argument("--rounds", type=int, default=7, help="interleaved timing rounds (default 7)")
+    p.add_argument("--rounds", type=int, default=9, help="interleaved timing rounds (default 9)")
     p.add_argument("--resets", type=int, default=200, help="resets timed per round (default 200)")
     p.add_argument("--make-processes", type=int, default=3,
                    help="fresh processes per id for the make timing (default 3)")

@@ -106,7 +106,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._achieved = self.observation_layout[self.task.achieved]
         goal_size = self._achieved.stop - self._achieved.start
         box = functools.partial(gym.spaces.Box, -np.inf, np.inf, dtype=np.float64)
-        self.observation_space = gym.spaces.Dict({
+        self.observation_space = gym.spaces.Dict({  # type: ignore[assignment]
             "observation": box(shape=(self._observer.size,)),
             "achieved_goal": box(shape=(goal_size,)),
             "desired_goal": box(shape=(goal_size,)),
@@ -203,6 +203,9 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                              f"{self._state_buf.shape}")
         mujoco.mj_setState(self.model, self.data, state, STATE_SPEC)
         mujoco.mj_forward(self.model, self.data)
+        # mj_forward overwrites the solver's warm start on some mujoco versions (3.3); put the
+        # saved one back so the next step is bit-identical to the original run.
+        mujoco.mj_setState(self.model, self.data, state, STATE_SPEC)
 
     def observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """The observation and info of the current state (e.g. after `set_state`)."""

@@ -104,7 +104,7 @@ def build_spec(config: RobotConfig) -> mujoco.MjSpec:
 </mujoco>"""
     spec = mujoco.MjSpec.from_string(root)
     for name in _DEAD_JOINTS:
-        spec.delete(spec.joint(name))
+        _delete(spec, spec.joint(name))
     base = spec.body("robot0:base_link")
     base.pos = np.array([*config.base_xy, 0.0]) + _BASE_LINK_OFFSET
     for geom in spec.geoms:
@@ -128,6 +128,14 @@ def build_spec(config: RobotConfig) -> mujoco.MjSpec:
     # gymnasium-robotics' near-white table saturates under the lights; a light grey keeps texture.
     spec.material("table_mat").rgba = [0.72, 0.72, 0.70, 1.0]
     return spec
+
+
+def _delete(spec: mujoco.MjSpec, element: object) -> None:
+    """Remove an element from a spec: `MjSpec.delete` from mujoco 3.3.1, `element.delete` before."""
+    if hasattr(spec, "delete"):
+        spec.delete(element)
+    else:
+        element.delete()  # type: ignore[attr-defined]
 
 
 CAMERA_TARGET = (1.3, 0.75, 0.45)

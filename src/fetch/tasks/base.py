@@ -57,6 +57,8 @@ class Task(abc.ABC):
     parts: ClassVar[tuple[ob.Part, ...]]
     achieved: ClassVar[str]
     """the part that is the achieved goal."""
+    success_rule: ClassVar[str] = "within 5 cm of the goal"
+    """how success is judged, in words (the README's task table shows it)."""
 
     @abc.abstractmethod
     def build(self, spec: mujoco.MjSpec) -> None:

@@ -48,6 +48,7 @@ class _BinTask(Task):
     robot = RobotConfig(start_height=0.2)
     parts = (*object_parts("block", "block"), ob.site_pos("bin_pos", "bin"))
     achieved = "block_pos"
+    success_rule = "block within 5 cm of the goal"
     bin_range = 0.10
     """[m] the bin's centre is sampled this far (x and y) around the gripper's start."""
 
@@ -112,6 +113,7 @@ class BinPlace(_BinTask):
     """Put the block from the table into the bin, resting on its floor at the goal spot."""
 
     name = "bin_place"
+    success_rule = "block within 5 cm of the goal and its centre below the bin's rim"
     spawn_range = 0.20
     """[m] the block's start around the gripper's (outside the bin); see BinPick.goal_range."""
     goal_range = 0.05

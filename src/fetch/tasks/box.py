@@ -58,6 +58,7 @@ class _BoxTask(Task):
     robot = RobotConfig(start_height=0.22)
     parts = (*object_parts("lid", "lid"), ob.site_pos("box_pos", "box"))
     achieved = "lid_pos"
+    success_rule = "lid within 5 cm of the goal"
     box_range = 0.08
     """[m] the box's centre is sampled this far (x and y) around the gripper's start."""
 
@@ -120,6 +121,7 @@ class BoxClose(_BoxTask):
     """
 
     name = "box_close"
+    success_rule = "lid seated: its centre within 2 cm (xy) of the box's axis and 1 cm of the seated height"
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
               grip_start: np.ndarray) -> np.ndarray:

@@ -15,6 +15,7 @@ class Reach(Task):
     """Move the grip site to a point sampled in a 30 cm cube around its start."""
 
     name = "reach"
+    success_rule = "grip site within 5 cm of the goal"
     robot = RobotConfig(block_gripper=True)
     parts = GRIPPER_PARTS
     achieved = "grip_pos"
@@ -45,6 +46,7 @@ class _ObjectTask(Task):
 
     parts = object_parts("object", "object0")
     achieved = "object_pos"
+    success_rule = "object within 5 cm of the goal"
     params: ObjectGoal
     object_half_height = 0.025
 

@@ -102,6 +102,7 @@ class DrawerOpen(_DrawerTask):
     """Hook the handle and pull the drawer open by at least 15 cm (goal: the handle fully open)."""
 
     name = "drawer_open"
+    success_rule = "drawer open by >= 15 cm (the handle within 5 cm of the goal)"
     start_opening = 0.0
     goal_opening = SLIDE
 
@@ -110,5 +111,6 @@ class DrawerClose(_DrawerTask):
     """Push the open drawer shut to at most 5 cm (goal: the handle with the drawer closed)."""
 
     name = "drawer_close"
+    success_rule = "drawer open by <= 5 cm (the handle within 5 cm of the goal)"
     start_opening = SLIDE
     goal_opening = 0.0

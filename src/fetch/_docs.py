@@ -1,0 +1,85 @@
+"""The README's generated tables (tasks, observation layouts); a test holds the README to them."""
+
+from __future__ import annotations
+
+import inspect
+
+from fetch import observation as ob
+from fetch.tasks import REGISTRATIONS
+
+
+def _first_line(obj: object) -> str:
+    return (inspect.getdoc(obj) or "").splitlines()[0].rstrip(".")
+
+
+def task_table() -> str:
+    """| id | goal | success | horizon | obs |, one row per registered id."""
+    rows = ["| id | task | success (`info['is_success']`) | horizon | observation |",
+            "|---|---|---|---|---|"]
+    for reg in REGISTRATIONS:
+        size = sum(p.size for p in reg.task.parts)
+        rows.append(f"| `{reg.env_id}` | {_first_line(reg.task)} | {reg.task.success_rule} | "
+                    f"{reg.max_episode_steps} | {size} |")
+    return "\n".join(rows)
+
+
+def _describe(part: ob.Part) -> str:
+    comp = part.components[0]
+    target = comp.reading.target
+    if part.euler:
+        return f"Euler angles of site `{target}` [rad]"
+    kind = comp.reading.kind
+    if kind == "framepos":
+        return (f"position of site `{target}` minus `{comp.minus.target}` [m]" if comp.minus
+                else f"position of site `{target}` [m]")
+    if kind == "framelinvel":
+        rel = f" minus `{comp.minus.target}`'s" if comp.minus else ""
+        return f"linear velocity of site `{target}`{rel} x dt [m/step]"
+    if kind == "frameangvel":
+        return f"angular velocity of site `{target}` x dt [rad/step]"
+    joints = ", ".join(f"`{c.reading.target}`" for c in part.components)
+    return f"velocity of {joints} x dt [m/step]" if kind == "jointvel" else f"position of {joints} [m]"
+
+
+def layout_tables() -> str:
+    """One table per distinct observation layout, naming the ids that share it."""
+    groups: dict[tuple[ob.Part, ...], list[str]] = {}
+    for reg in REGISTRATIONS:
+        groups.setdefault(reg.task.parts, []).append(reg.env_id)
+    out = []
+    for parts, ids in groups.items():
+        layout = ob.layout(parts)
+        out.append(f"**{', '.join(f'`{i}`' for i in ids)}** ({sum(p.size for p in parts)} numbers)\n")
+        out.append("| slice | name | content |\n|---|---|---|")
+        for part in parts:
+            sl = layout[part.name]
+            out.append(f"| {sl.start}:{sl.stop} | `{part.name}` | {_describe(part)} |")
+        out.append("")
+    return "\n".join(out).rstrip() + "\n"
+
+
+BLOCKS = {"tasks": task_table, "layouts": layout_tables}
+"""README blocks between `<!-- NAME:begin -->` and `<!-- NAME:end -->` markers."""
+
+
+def render_blocks(text: str) -> str:
+    """`text` with every generated block replaced by its current content."""
+    for name, make in BLOCKS.items():
+        begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+        head, found, rest = text.partition(begin)
+        if not found:
+            raise ValueError(f"README has no {begin} marker")
+        _, found, tail = rest.partition(end)
+        if not found:
+            raise ValueError(f"README has no {end} marker")
+        text = f"{head}{begin}\n{make().rstrip()}\n{end}{tail}"
+    return text
+
+
+if __name__ == "__main__":
+    import pathlib
+    import sys
+
+    readme = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "README.md")
+    readme.write_text(render_blocks(readme.read_text()))
+    print(f"updated {readme}")
