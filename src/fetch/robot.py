@@ -103,6 +103,13 @@ def build_spec(config: RobotConfig) -> mujoco.MjSpec:
   <worldbody><include file="{assets / 'fetch' / 'robot.xml'}"/></worldbody>
 </mujoco>"""
     spec = mujoco.MjSpec.from_string(root)
+    # Elliptic friction cones: with MuJoCo's default pyramidal ones, sliding friction depends on
+    # the direction of motion and a puck gliding diagonally curves away from its line.
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    if hasattr(mujoco.mjtEnableBit, "mjENBL_MULTICCD"):
+        # Before mujoco 4 convex-convex collisions give one contact unless asked for more: a
+        # cylinder on the table then rocks and sinks ~7 mm. 4.x does this by default.
+        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_MULTICCD)
     for name in _DEAD_JOINTS:
         _delete(spec, spec.joint(name))
     base = spec.body("robot0:base_link")

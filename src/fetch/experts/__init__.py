@@ -1,0 +1,45 @@
+"""Scripted experts, one per task: `expert = make_expert(env)`, `expert.reset()`, `action = expert(obs)`."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+import gymnasium as gym
+
+from fetch.experts.base import Expert
+from fetch.experts.motion import Drawer, Push, Reach, Slide
+from fetch.experts.pick import Grasp, PickAndPlace
+from fetch.tasks import bin as bin_task
+from fetch.tasks import box as box_task
+from fetch.tasks import task_class
+
+__all__ = ["Expert", "make_expert"]
+
+# Handle: the grip site 2.2 cm above the lid's top face, so the fingertips clear the lid.
+_HANDLE = (0.0, 0.0, box_task.LID_THICK / 2 + 0.022)
+_BIN_CARRY = bin_task.TABLE_TOP + bin_task.WALL_HEIGHT + 2 * bin_task.BLOCK + 0.03
+_BOX_CARRY = box_task.SEATED_Z + _HANDLE[2] + 0.04
+
+EXPERTS: dict[str, Callable[[Mapping[str, slice]], Expert]] = {
+    "reach": Reach,
+    "push": Push,
+    "slide": Slide,
+    "pick_place": lambda layout: PickAndPlace(layout, Grasp("object")),
+    "bin_pick": lambda layout: PickAndPlace(layout, Grasp("block", opening=0.03, carry_z=_BIN_CARRY)),
+    "bin_place": lambda layout: PickAndPlace(layout, Grasp("block", opening=0.03, carry_z=_BIN_CARRY,
+                                                           release=True)),
+    "box_open": lambda layout: PickAndPlace(layout, Grasp("lid", _HANDLE, opening=0.02, carry_z=_BOX_CARRY,
+                                                          release=True)),
+    "box_close": lambda layout: PickAndPlace(layout, Grasp("lid", _HANDLE, opening=0.02, carry_z=_BOX_CARRY,
+                                                           release=True, release_tolerance=0.006)),
+    "drawer_open": Drawer,
+    "drawer_close": Drawer,
+}
+
+
+def make_expert(env: gym.Env | str) -> Expert:
+    """The scripted expert for an env (or a registered id such as "Drawer-open-v2")."""
+    if isinstance(env, str):
+        env = gym.make(env)
+    unwrapped = env.unwrapped
+    return EXPERTS[unwrapped.task.name](unwrapped.observation_layout)

@@ -1,0 +1,59 @@
+"""What an expert is, and the proportional controller and finger servo every expert uses."""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Mapping
+
+import numpy as np
+
+ACTION_STEP = 0.05
+"""[m] how far a = 1 moves the gripper's target in one step (fetch.robot.ACTION_STEP)."""
+
+
+class Expert(abc.ABC):
+    """A scripted policy that reads only the observation dict: `expert.reset()`, then `expert(obs)`.
+
+    `layout` names the slices of `obs["observation"]` (the env's `observation_layout`).
+    """
+
+    def __init__(self, layout: Mapping[str, slice], gain: float = 1.0) -> None:
+        self.layout = dict(layout)
+        self.gain = gain
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the previous episode (call after every env.reset)."""
+        self.stage = "start"
+        self.timer = 0
+
+    def part(self, obs: Mapping[str, np.ndarray], name: str) -> np.ndarray:
+        return np.asarray(obs["observation"])[self.layout[name]]
+
+    def move(self, grip: np.ndarray, target: np.ndarray, speed: float = 1.0) -> np.ndarray:
+        """A proportional step of the grip site towards `target` [m], at most `speed` of full speed."""
+        return np.clip(self.gain * (np.asarray(target) - grip) / ACTION_STEP, -speed, speed)
+
+    @staticmethod
+    def finger_servo(obs: Mapping[str, np.ndarray], layout: Mapping[str, slice], opening: float) -> float:
+        """a[3] that drives each finger towards `opening` [m] (0 closed, 0.05 fully open).
+
+        The finger actuators servo to (current opening + a[3]), so a[3] = opening - current
+        commands `opening` itself; subtracting the motion expected in the next step keeps a
+        fast-moving finger from overshooting into a wall.
+        """
+        vec = np.asarray(obs["observation"])
+        state, per_step = vec[layout["gripper_state"]].mean(), vec[layout["gripper_vel"]].mean()
+        return float(np.clip(opening - state - per_step, -1.0, 1.0))
+
+    def advance(self, stage: str) -> None:
+        self.stage, self.timer = stage, 0
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+        action = self.act(obs)
+        self.timer += 1
+        return np.asarray(action, dtype=np.float32)
+
+    @abc.abstractmethod
+    def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The 4-D action for this observation."""
