@@ -6,12 +6,12 @@ from collections.abc import Callable, Mapping
 
 import gymnasium as gym
 
+from fetch.errors import FetchError
 from fetch.experts.base import Expert
 from fetch.experts.motion import Drawer, Push, Reach, Slide
 from fetch.experts.pick import Grasp, PickAndPlace
 from fetch.tasks import bin as bin_task
 from fetch.tasks import box as box_task
-from fetch.tasks import task_class
 
 __all__ = ["Expert", "make_expert"]
 
@@ -39,7 +39,11 @@ EXPERTS: dict[str, Callable[[Mapping[str, slice]], Expert]] = {
 
 def make_expert(env: gym.Env | str) -> Expert:
     """The scripted expert for an env (or a registered id such as "Drawer-open-v2")."""
+    from fetch.env import FetchEnv
+
     if isinstance(env, str):
         env = gym.make(env)
     unwrapped = env.unwrapped
+    if not isinstance(unwrapped, FetchEnv):
+        raise FetchError(f"make_expert needs a gym-fetch env or id, got {type(unwrapped).__name__}")
     return EXPERTS[unwrapped.task.name](unwrapped.observation_layout)

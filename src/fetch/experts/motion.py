@@ -64,57 +64,60 @@ class Push(Expert):
 
 
 class Slide(Push):
-    """Push the puck towards the goal with the hand's speed capped at sqrt(2 a d).
+    """Knock the puck towards the goal with aimed bumps, never faster than it can stop at the goal.
 
-    A puck gliding alone on the 0.1-friction table decelerates at a ~ mu g, and sqrt(2 a d) is the
-    speed at which it glides exactly the remaining distance d. A hand kept under that profile
-    never outruns what the puck can stop from, and where the hand must stop (the workspace ends
-    at x = 1.5 m) the puck glides on to the goal.
+    The hand, driven through a mocap target, surges and stops within each 40 ms step, so it
+    moves the puck by a series of bumps, each an impulse along the contact normal. The closed
+    fingers are a 2.7 x 3 cm rectangle: a face would push only along its own normal, so each
+    step the hand puts a corner behind the puck on the line from the goal through the puck's
+    centre and pushes through it. A puck gliding alone decelerates at a ~ mu g, and sqrt(2 a d)
+    is the speed at which it glides exactly the distance d left; the hand never pushes faster,
+    so where it must stop (the workspace ends at x = 1.5 m) the puck glides on to the goal.
     """
 
-    radius = 0.025 + 0.002
-    """[m] the puck's radius plus a small gap."""
+    radius = 0.025
+    """[m] the puck's radius."""
     half = (0.0135, 0.0149)
-    """[m] the closed fingers' half extents (x, y) around the grip site: a rectangular pusher."""
+    """[m] the closed fingers' half extents (x, y) around the grip site."""
     deceleration = 0.96
     """[m/s^2] the puck's measured deceleration when gliding alone."""
     full_speed = 0.05 / 0.04
     """[m/s] the hand's speed at |a| = 1."""
     ramp = 0.12
-    """[m/s] how much faster the hand may go each step while pushing."""
+    """[m/s] how much faster the hand may push each step."""
+    short = 0.025
+    """[m] aim to stop the puck this far short of the goal: the last bump adds a little speed."""
 
     def offset(self, direction: np.ndarray) -> np.ndarray:
-        # Finger-puck friction is 1, so a face pushing within 45 degrees of its normal holds the
-        # puck without slipping: use the x face, or the y face for goals more to the side.
-        axis = 0 if abs(direction[0]) >= abs(direction[1]) else 1
-        offset = np.zeros(2)
-        offset[axis] = np.sign(direction[axis]) * (self.half[axis] + self.radius)
-        return offset
+        corner = np.array([np.sign(direction[0]) * self.half[0], np.sign(direction[1]) * self.half[1]])
+        return direction * (self.radius + 0.003) + corner
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         grip = self.part(obs, "grip_pos")
         obj = self.part(obs, "object_pos")
-        moving = np.linalg.norm(self.part(obs, "object_velp") + self.part(obs, "grip_velp")) / 0.04 > 0.03
-        if self.stage != "push":
-            if moving:  # let a gliding puck come to rest before lining up again
-                return np.append(self.move(grip, grip), -1.0)
-            return super().act(obs)
         goal = np.asarray(obs["desired_goal"])
         to_goal = (goal - obj)[:2]
         dist = float(np.linalg.norm(to_goal))
         direction = to_goal / max(dist, 1e-6)
-        if not moving and np.linalg.norm(grip[:2] - (obj[:2] - self.offset(direction))) > 0.03:
+        velocity = (self.part(obs, "object_velp") + self.part(obs, "grip_velp"))[:2] / 0.04
+        moving = float(np.linalg.norm(velocity)) > 0.03
+        glide = max(float(velocity @ direction), 0.0) ** 2 / (2 * self.deceleration)
+        if dist < 0.02 or (moving and glide >= dist - self.short):
+            # It is there, or will glide there: keep the hand still, out of its way.
+            return np.append(self.move(grip, grip), -1.0)
+        if self.stage != "push":
+            if moving:  # let a gliding puck come to rest before lining up again
+                return np.append(self.move(grip, grip), -1.0)
+            return super().act(obs)
+        behind = obj[:2] - self.offset(direction)
+        if not moving and np.linalg.norm(grip[:2] - behind) > 0.03:
             self.advance("over")  # the puck stopped short or off the line: line up again
             return np.append(self.move(grip, grip), -1.0)
-        # Speed up gently (a fast hand bounces the puck off), and never faster than the puck
-        # could glide to a stop at the goal.
-        profile = np.sqrt(2 * self.deceleration * max(dist - 0.005, 0.0))
-        cap = min(self.full_speed, profile, self.ramp * (self.timer + 1)) / self.full_speed
-        xyz = self.gain * (np.array([*(goal[:2] - self.offset(direction)), obj[2]]) - grip) / 0.05
-        norm = float(np.linalg.norm(xyz[:2]))
-        if norm > cap:
-            xyz[:2] *= cap / norm
-        return np.clip(np.append(xyz, -1.0), -1.0, 1.0)
+        # Bumps leave the puck a little faster than the hand: push at 85 % of the profile.
+        profile = 0.85 * np.sqrt(2 * self.deceleration * max(dist - self.short, 0.0))
+        speed = min(self.full_speed, profile, self.ramp * (self.timer + 1))
+        target = np.array([*(behind + direction * speed * 0.04), obj[2]])
+        return np.clip(np.append(self.move(grip, target), -1.0), -1.0, 1.0)
 
 
 class Drawer(Expert):

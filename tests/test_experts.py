@@ -1,0 +1,49 @@
+"""Every task's scripted expert solves it: a regression guard on a few seeds per task."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+from fetch.experts import Expert, make_expert
+
+SEEDS = range(100, 106)
+# Slide's expert is not yet reliable (about 65 % of episodes); it is held to what it does today
+# so that it cannot get worse unnoticed.
+MIN_SUCCESSES = {"Slide-v2": 3}
+
+
+def test_make_expert_takes_an_env_or_an_id() -> None:
+    assert isinstance(make_expert("Reach-v2"), Expert)
+    assert isinstance(make_expert(gym.make("Drawer-open-v2")), Expert)
+
+
+def test_expert_solves_the_task(env_id: str) -> None:
+    env = gym.make(env_id)
+    expert = make_expert(env)
+    successes = 0
+    for seed in SEEDS:
+        obs, _ = env.reset(seed=seed)
+        expert.reset()
+        done = False
+        while not done:
+            action = expert(obs)
+            assert action.shape == (4,) and action.dtype == np.float32
+            assert np.all(np.abs(action) <= 1.0)
+            obs, _, terminated, truncated, info = env.step(action)
+            done = terminated or truncated
+        successes += int(info["is_success"])
+    assert successes >= MIN_SUCCESSES.get(env_id, len(SEEDS)), f"{successes}/{len(SEEDS)}"
+
+
+def test_expert_reads_only_the_observation() -> None:
+    """The same observations give the same actions, whatever env instance produced them."""
+    a, b = gym.make("Box-close-v2"), gym.make("Box-close-v2")
+    ea, eb = make_expert(a), make_expert(b)
+    obs_a, _ = a.reset(seed=3)
+    obs_b, _ = b.reset(seed=3)
+    for _ in range(30):
+        act_a, act_b = ea(obs_a), eb(obs_b)
+        np.testing.assert_array_equal(act_a, act_b)
+        obs_a = a.step(act_a)[0]
+        obs_b = b.step(act_b)[0]
