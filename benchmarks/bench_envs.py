@@ -56,6 +56,22 @@ def package_version(name: str) -> str:
         return "not installed"
 
 
+def _git(where: str, *args: str) -> str:
+    return subprocess.run(["git", "-C", where, *args], capture_output=True, text=True, check=True,
+                          timeout=10).stdout.strip()
+
+
+def fetch_source() -> str:
+    """Where `fetch` was imported from, with its git commit when that is a checkout."""
+    where = os.path.dirname(os.path.abspath(fetch.__file__))
+    try:
+        commit = _git(where, "rev-parse", "--short", "HEAD")
+        dirty = _git(where, "status", "--porcelain", "--", ".")
+    except (OSError, subprocess.SubprocessError):
+        return where
+    return f"{where} (git {commit}{', with uncommitted changes' if dirty else ''})"
+
+
 def header() -> str:
     try:
         usable = len(os.sched_getaffinity(0))
@@ -70,7 +86,7 @@ def header() -> str:
         ("gymnasium", gym.__version__),
         ("gymnasium-robotics", package_version("gymnasium-robotics")),
         ("numpy", np.__version__),
-        ("gym-fetch-v2", fetch.__version__),
+        ("gym-fetch-v2", f"{fetch.__version__} from {fetch_source()}"),
     ]
     return "\n".join(["| | |", "|---|---|", *(f"| {k} | {v} |" for k, v in rows)])
 
@@ -126,9 +142,11 @@ def record_ours(env: gym.Env, actions: Sequence[np.ndarray], seed: int) -> Recor
     env.reset(seed=seed)
     for a in actions:
         before = u.get_state()
-        # What env.set_state does, on a scratch MjData so the env itself is untouched.
+        # What env.set_state does, on a scratch MjData so the env itself is untouched (the second
+        # mj_setState puts back the warm start that mj_forward overwrites on some mujoco versions).
         mujoco.mj_setState(model, scratch, before, STATE_SPEC)
         mujoco.mj_forward(model, scratch)
+        mujoco.mj_setState(model, scratch, before, STATE_SPEC)
         u.robot.apply(scratch, np.clip(a, -1.0, 1.0).astype(np.float64).tolist())
         pre.append(get_state(model, scratch))
         mujoco.mj_step(model, scratch, nstep=n_substeps)
@@ -321,7 +339,8 @@ def measure_make(env_id: str, processes: int, repeats: int) -> MakeTimes:
 def describe_error(exc: BaseException) -> str:
     last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
     where = f" at {os.path.basename(last.filename)}:{last.lineno} ({last.line})" if last else ""
-    return f"{type(exc).__name__}: {exc}{where}".replace("\n", " ")
+    message = f": {exc}" if str(exc) else ""
+    return f"{type(exc).__name__}{message}{where}".replace("\n", " ")
 
 
 # -- report ----------------------------------------------------------------------------------------
