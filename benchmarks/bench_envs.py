@@ -10,6 +10,7 @@ import importlib.metadata
 import io
 import json
 import os
+import pickle
 import platform
 import statistics
 import subprocess
@@ -132,62 +133,66 @@ class Recording:
     """max |state after env.step - state after mj_step from the recorded state|: 0 means exact."""
 
 
-def record_ours(env: gym.Env, actions: Sequence[np.ndarray], seed: int) -> Recording:
-    """Recompute each step's pre-`mj_step` state: the state before the step with the action applied."""
-    u: Any = env.unwrapped
-    model = u.model
-    scratch = mujoco.MjData(model)
-    n_substeps = int(round(u.dt / model.opt.timestep))
-    pre, worst = [], 0.0
-    env.reset(seed=seed)
-    for a in actions:
-        before = u.get_state()
-        # What env.set_state does, on a scratch MjData so the env itself is untouched (the second
-        # mj_setState puts back the warm start that mj_forward overwrites on some mujoco versions).
-        mujoco.mj_setState(model, scratch, before, STATE_SPEC)
-        mujoco.mj_forward(model, scratch)
-        mujoco.mj_setState(model, scratch, before, STATE_SPEC)
-        u.robot.apply(scratch, np.clip(a, -1.0, 1.0).astype(np.float64).tolist())
-        pre.append(get_state(model, scratch))
-        mujoco.mj_step(model, scratch, nstep=n_substeps)
-        _, _, terminated, truncated, _ = env.step(a)
-        worst = max(worst, float(np.max(np.abs(u.get_state() - get_state(model, scratch)))))
-        if terminated or truncated:
-            env.reset()
-    return Recording(pre, n_substeps, worst)
-
-
 def record_by_hook(env: gym.Env, actions: Sequence[np.ndarray], seed: int) -> Recording:
-    """Capture each step's pre-`mj_step` state by wrapping `mujoco.mj_step` (for envs we don't own)."""
+    """Capture each step's state at its first physics call (action applied) by wrapping mujoco.
+
+    Works for both envs without re-implementing either: gymnasium-robotics calls `mj_step(nstep)`;
+    ours calls `mj_step2`, `mj_step(nstep - 1)`, `mj_step1` (the same 20 physics steps of work,
+    ending with the positions and sensors the observation reads). A replay checks that the
+    recorded states are the env's own.
+    """
     u: Any = env.unwrapped
     model = u.model
     scratch = mujoco.MjData(model)
-    original = mujoco.mj_step
-    captured: list[tuple[np.ndarray, int]] = []
+    originals = {name: getattr(mujoco, name) for name in ("mj_step", "mj_step1", "mj_step2")}
+    substeps = {"mj_step": None, "mj_step1": 0, "mj_step2": 1}
+    state: list[np.ndarray] = []
+    calls: list[tuple[str, int]] = []
 
-    def hook(m: mujoco.MjModel, d: mujoco.MjData, nstep: int = 1) -> None:
-        captured.append((get_state(m, d), nstep))
-        original(m, d, nstep=nstep)
+    def hooked(name: str) -> Any:
+        def call(m: mujoco.MjModel, d: mujoco.MjData, nstep: int = 1) -> None:
+            if not calls:
+                state.append(get_state(m, d))
+            calls.append((name, nstep))
+            if name == "mj_step":
+                originals[name](m, d, nstep=nstep)
+            else:
+                originals[name](m, d)
+        return call
 
     pre, worst, n_substeps = [], 0.0, 0
     env.reset(seed=seed)
-    mujoco.mj_step = hook  # type: ignore[assignment]
+    clone = pickle.loads(pickle.dumps(u)) if hasattr(u, "get_state") else None
+    for name in originals:
+        setattr(mujoco, name, hooked(name))
     try:
         for a in actions:
-            captured.clear()
+            state.clear()
+            calls.clear()
+            if hasattr(u, "get_state"):
+                before = u.get_state()
             _, _, terminated, truncated, _ = env.step(a)
-            if len(captured) != 1:
-                raise RuntimeError(f"{env.spec.id if env.spec else env}: expected one mj_step call "
-                                   f"per env.step, saw {len(captured)}")
-            state, n_substeps = captured[0]
-            pre.append(state)
-            mujoco.mj_setState(model, scratch, state, STATE_SPEC)
-            original(model, scratch, nstep=n_substeps)
-            worst = max(worst, float(np.max(np.abs(get_state(model, u.data) - get_state(model, scratch)))))
+            if not calls:
+                raise RuntimeError(f"{env.spec.id if env.spec else env}: no physics call in env.step")
+            n_substeps = sum(n if substeps[name] is None else substeps[name] for name, n in calls)
+            pre.append(state[0])
+            if hasattr(u, "get_state"):
+                # Ours: the step's first half-step ran before the action was applied, so check
+                # against a copy of the env stepped from the state before the step.
+                clone.set_state(before)
+                clone.step(a)
+                worst = max(worst, float(np.max(np.abs(u.get_state() - clone.get_state()))))
+            else:
+                # Theirs: one mj_step call; replay it from the captured state.
+                mujoco.mj_setState(model, scratch, state[0], STATE_SPEC)
+                for name, n in calls:
+                    originals[name](model, scratch, nstep=n)
+                worst = max(worst, float(np.max(np.abs(get_state(model, u.data) - get_state(model, scratch)))))
             if terminated or truncated:
                 env.reset()
     finally:
-        mujoco.mj_step = original  # type: ignore[assignment]
+        for name, original in originals.items():
+            setattr(mujoco, name, original)
     return Recording(pre, n_substeps, worst)
 
 
@@ -462,7 +467,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for env_id in ids:
         log(f"recording {env_id}")
         env = gym.make(env_id)
-        subjects.append(Subject(env_id, env, record_ours(env, actions, args.seed), Timings()))
+        subjects.append(Subject(env_id, env, record_by_hook(env, actions, args.seed), Timings()))
     theirs: Subject | None = None
     if theirs_env is not None:
         log(f"recording {THEIRS}")

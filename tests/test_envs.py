@@ -92,7 +92,8 @@ def test_compute_reward_on_a_batch_equals_step_rewards(env_id: str, reward_type:
     rng = np.random.default_rng(0)
     ach = np.array(achieved)
     goals = ach[rng.permutation(len(ach))] + rng.normal(0, 0.02, ach.shape)
-    scalar = [float(task.success(a.tolist(), g.tolist())) for a, g in zip(ach, goals, strict=True)]
+    scalar = [float(task.success(a.tolist(), g.tolist(), float(np.linalg.norm(a - g))))
+              for a, g in zip(ach, goals, strict=True)]
     np.testing.assert_array_equal(task.is_success(ach, goals), scalar)
 
 
@@ -101,8 +102,8 @@ def test_success_is_reachable_in_goal_space(env: gym.Env) -> None:
     obs, _ = env.reset(seed=3)
     task = env.unwrapped.task
     goal = obs["desired_goal"]
-    assert task.success(goal.tolist(), goal.tolist())
-    assert not task.success((goal + [0.3, 0, 0]).tolist(), goal.tolist())
+    assert task.success(goal.tolist(), goal.tolist(), 0.0)
+    assert not task.success((goal + [0.3, 0, 0]).tolist(), goal.tolist(), 0.3)
 
 
 def test_same_seed_and_actions_give_identical_observations(env_id: str) -> None:

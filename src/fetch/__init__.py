@@ -16,5 +16,9 @@ __all__ = ["ENV_IDS", "FetchError", "UnknownNameError", "__version__"]
 
 for _reg in REGISTRATIONS:
     if _reg.env_id not in _gym.registry:
-        _gym.register(id=_reg.env_id, entry_point="fetch.env:FetchEnv",
-                      kwargs={"task": _reg.task.name}, max_episode_steps=_reg.max_episode_steps)
+        # No passive env-checker or order-enforcing layer in every step's path: the test suite
+        # runs gymnasium's full check_env on every id, and an env is in a valid start state
+        # from construction, so stepping before the first reset is harmless.
+        _gym.register(id=_reg.env_id, entry_point="fetch.env:FetchEnv", kwargs={"task": _reg.task.name},
+                      max_episode_steps=_reg.max_episode_steps, disable_env_checker=True,
+                      order_enforce=False)

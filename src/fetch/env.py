@@ -86,6 +86,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.model: mujoco.MjModel = copy.copy(compiled.model)
         self.data = mujoco.MjData(self.model)
         self.robot = Robot(self.task.robot, self.model)
+        self.robot.bind(self.data)
         self.task.bind(self.model)
         self._start_state = compiled.start_state
         self._grip_start = compiled.grip_start
@@ -100,6 +101,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._viewer: Any = None
         self._goal_mocap = int(self.model.body_mocapid[
             mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "goal")])
+        self._goal_pos = self.data.mocap_pos[self._goal_mocap]  # a view: MjData's arrays never move
 
         self._observer = ob.Observer(self.model, self.task.parts)
         self.observation_layout: dict[str, slice] = dict(self._observer.layout)
@@ -145,13 +147,22 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}")
-        values = a.tolist()
-        if not all(map(math.isfinite, values)):
-            raise ValueError(f"action {values} is not finite; a NaN or inf would make the "
-                             "simulation unstable (valid: finite values, clipped to [-1, 1])")
+        clipped = []
+        for v in a.tolist():
+            if not math.isfinite(v):
+                raise ValueError(f"action {a.tolist()} is not finite; a NaN or inf would make the "
+                                 "simulation unstable (valid: finite values, clipped to [-1, 1])")
+            clipped.append(-1.0 if v < -1.0 else 1.0 if v > 1.0 else v)
+        self.robot.apply(clipped)
         m, d = self.model, self.data
-        self.robot.apply(d, [min(max(v, -1.0), 1.0) for v in values])
-        mujoco.mj_step(m, d, nstep=N_SUBSTEPS)
+        # 20 physics steps, split so that the last call computes what the observation reads:
+        # mj_step2 finishes the step whose first half (positions, velocities, sensors) ran at
+        # the end of the previous call or in reset/set_state's mj_forward, and mj_step1 starts
+        # the next one from the new state. (The new mocap target so acts from the second
+        # physics step on, 2 ms into the 40 ms control period.)
+        mujoco.mj_step2(m, d)
+        mujoco.mj_step(m, d, nstep=N_SUBSTEPS - 1)
+        mujoco.mj_step1(m, d)
         obs, info = self._observe()
         if self.reward_type == "sparse":
             reward = info["is_success"] - 1.0
@@ -169,21 +180,17 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return -goal_distance(achieved_goal, desired_goal)
 
     def _observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        m, d = self.model, self.data
-        # Refresh only what the sensors read (mj_step leaves positions one substep stale), so
-        # the observation is a function of the state alone.
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        mujoco.mj_comVel(m, d)
-        mujoco.mj_sensorPos(m, d)
-        mujoco.mj_sensorVel(m, d)
+        # The sensors are current: mj_step1 (step) or mj_forward (reset, set_state) computed
+        # them from the present state, so the observation is a function of the state alone.
+        d = self.data
         vector = self._observer(d)
         achieved = vector[self._achieved]
-        desired = d.mocap_pos[self._goal_mocap].copy()
+        desired = self._goal_pos.copy()
         a, g = achieved.tolist(), desired.tolist()
+        distance = math.dist(a, g)
         info: dict[str, Any] = {
-            "is_success": 1.0 if self.task.success(a, g) else 0.0,
-            "distance": math.dist(a, g),
+            "is_success": 1.0 if self.task.success(a, g, distance) else 0.0,
+            "distance": distance,
         }
         info.update(self.task.facts(d, vector))
         return {"observation": vector, "achieved_goal": achieved.copy(), "desired_goal": desired}, info

@@ -190,14 +190,10 @@ class Robot:
         self.finger_ctrl = np.array([
             name(mujoco.mjtObj.mjOBJ_ACTUATOR, f"robot0:{s}_gripper_finger_joint") for s in "lr"
         ])
-        self.finger_geoms = np.array([
-            name(mujoco.mjtObj.mjOBJ_GEOM, f"robot0:{s}_gripper_finger_link") for s in "lr"
-        ])
         # The mocap body is welded to gripper_link, whose origin sits this far from the grip site.
         self.grip_to_mocap = -_rotate(GRIPPER_QUAT, model.site_pos[self.grip_site])
-        self.control_dt = float(model.opt.timestep) * N_SUBSTEPS
-        self._vel = np.zeros(6)
         # Plain Python copies for the per-step scalar math.
+        self._max_lead, self._block_gripper = float(config.max_lead), bool(config.block_gripper)
         self._offset = tuple(self.grip_to_mocap.tolist())
         self._low, self._high = tuple(self.low.tolist()), tuple(self.high.tolist())
         self._finger_qpos = tuple(int(i) for i in self.finger_qpos)
@@ -226,31 +222,39 @@ class Robot:
         """[m] where the grip site is being pulled to."""
         return data.mocap_pos[self.mocap] - self.grip_to_mocap
 
-    def apply(self, data: mujoco.MjData, action: list[float]) -> None:
+    def bind(self, data: mujoco.MjData) -> None:
+        """Keep views of `data` for the per-step path (MjData's arrays never move)."""
+        self._grip = data.site_xpos[self.grip_site]
+        self._mocap_pos = data.mocap_pos[self.mocap]
+        self._ctrl = data.ctrl
+        self._qpos = data.qpos
+
+    def apply(self, action: list[float]) -> None:
         """Move the target by action[:3] * 5 cm within the limits; drive the fingers with action[3].
 
         The target is clamped to `max_lead` from the grip site, then to the workspace box, so
-        a held stick cannot wind it up far from the hand. Scalar math: this runs every step.
+        a held stick cannot wind it up far from the hand. Scalar math on the views kept by
+        `bind`: this runs every step.
         """
         a0, a1, a2, a3 = action
-        gx, gy, gz = data.site_xpos[self.grip_site].tolist()
+        gx, gy, gz = self._grip.tolist()
         ox, oy, oz = self._offset
-        mx, my, mz = data.mocap_pos[self.mocap].tolist()
+        mx, my, mz = self._mocap_pos.tolist()
         dx = mx - ox + ACTION_STEP * a0 - gx
         dy = my - oy + ACTION_STEP * a1 - gy
         dz = mz - oz + ACTION_STEP * a2 - gz
         dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if dist > self.config.max_lead:
-            scale = self.config.max_lead / dist
+        if dist > self._max_lead:
+            scale = self._max_lead / dist
             dx, dy, dz = dx * scale, dy * scale, dz * scale
         (lx, ly, lz), (hx, hy, hz) = self._low, self._high
-        data.mocap_pos[self.mocap] = (
+        self._mocap_pos[:] = (
             min(max(gx + dx, lx), hx) + ox,
             min(max(gy + dy, ly), hy) + oy,
             min(max(gz + dz, lz), hz) + oz,
         )
-        ctrl, qpos = data.ctrl, data.qpos
-        if self.config.block_gripper:
+        ctrl, qpos = self._ctrl, self._qpos
+        if self._block_gripper:
             for act in self._finger_ctrl:
                 ctrl[act] = 0.0
         else:

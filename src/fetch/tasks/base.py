@@ -76,9 +76,10 @@ class Task(abc.ABC):
         """1.0 where the goal is reached, else 0.0; vectorised over leading axes (for HER)."""
         return (goal_distance(achieved, desired) < DISTANCE_THRESHOLD).astype(np.float64)
 
-    def success(self, achieved: list[float], desired: list[float]) -> bool:
-        """`is_success` for one goal in scalar math (it runs every step); a test holds them equal."""
-        return math.dist(achieved, desired) < DISTANCE_THRESHOLD
+    def success(self, achieved: list[float], desired: list[float], distance: float) -> bool:
+        """`is_success` for one goal, given their distance [m], in scalar math (it runs every
+        step); a test holds the two equal."""
+        return distance < DISTANCE_THRESHOLD
 
     def facts(self, data: mujoco.MjData, obs: np.ndarray) -> dict[str, float]:
         """Task-specific entries of `info`: the same keys at every step."""

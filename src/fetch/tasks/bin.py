@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import mujoco
 import numpy as np
 
@@ -67,10 +65,11 @@ class _BinTask(Task):
         return center
 
     def facts(self, data: mujoco.MjData, obs: np.ndarray) -> dict[str, float]:
-        return {"block_in_bin": float(block_in_bin(obs[self._block_pos], obs[self._bin_pos]))}
+        inside = block_in_bin(obs[self._block_pos].tolist(), obs[self._bin_pos].tolist())
+        return {"block_in_bin": 1.0 if inside else 0.0}
 
 
-def block_in_bin(block: np.ndarray, bin_pos: np.ndarray) -> bool:
+def block_in_bin(block: list[float], bin_pos: list[float]) -> bool:
     """The block's centre is over the bin's floor, below its rim."""
     dx, dy = abs(block[0] - bin_pos[0]), abs(block[1] - bin_pos[1])
     return dx < INNER and dy < INNER and block[2] < TABLE_TOP + WALL_HEIGHT
@@ -136,6 +135,5 @@ class BinPlace(_BinTask):
         low = achieved[..., 2] - desired[..., 2] < RIM_ABOVE_REST
         return (near & low).astype(np.float64)
 
-    def success(self, achieved: list[float], desired: list[float]) -> bool:
-        return (math.dist(achieved, desired) < DISTANCE_THRESHOLD
-                and achieved[2] - desired[2] < RIM_ABOVE_REST)
+    def success(self, achieved: list[float], desired: list[float], distance: float) -> bool:
+        return distance < DISTANCE_THRESHOLD and achieved[2] - desired[2] < RIM_ABOVE_REST

@@ -54,6 +54,11 @@ def seated(lid: np.ndarray, seat: np.ndarray) -> np.ndarray:
     return (dxy < SEAT_XY) & (np.abs(lid[..., 2] - seat[..., 2]) < SEAT_Z)
 
 
+def seated_at(lid: list[float], seat: list[float]) -> bool:
+    """`seated` for one lid, in scalar math."""
+    return math.hypot(lid[0] - seat[0], lid[1] - seat[1]) < SEAT_XY and abs(lid[2] - seat[2]) < SEAT_Z
+
+
 class _BoxTask(Task):
     robot = RobotConfig(start_height=0.22)
     parts = (*object_parts("lid", "lid"), ob.site_pos("box_pos", "box"))
@@ -77,9 +82,8 @@ class _BoxTask(Task):
         return center
 
     def facts(self, data: mujoco.MjData, obs: np.ndarray) -> dict[str, float]:
-        seat = obs[self._box_pos].copy()
-        seat[2] = SEATED_Z
-        return {"lid_seated": float(seated(obs[self._lid_pos], seat))}
+        bx, by, _ = obs[self._box_pos].tolist()
+        return {"lid_seated": 1.0 if seated_at(obs[self._lid_pos].tolist(), [bx, by, SEATED_Z]) else 0.0}
 
 
 def spot_beside(rng: np.random.Generator, box_center: np.ndarray, table_low: tuple[float, float],
@@ -132,6 +136,5 @@ class BoxClose(_BoxTask):
     def is_success(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
         return seated(achieved, desired).astype(np.float64)
 
-    def success(self, achieved: list[float], desired: list[float]) -> bool:
-        dxy = math.hypot(achieved[0] - desired[0], achieved[1] - desired[1])
-        return dxy < SEAT_XY and abs(achieved[2] - desired[2]) < SEAT_Z
+    def success(self, achieved: list[float], desired: list[float], distance: float) -> bool:
+        return seated_at(achieved, desired)
