@@ -16,7 +16,7 @@ from fetch import observation as ob
 from fetch.errors import FetchError, UnknownNameError
 from fetch.robot import N_SUBSTEPS, Robot, build_spec
 from fetch.tasks import task_class
-from fetch.tasks.base import Task, goal_distance
+from fetch.tasks.base import Task, goal_distance, mocap_index
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 """What `get_state` saves: everything `mj_step` reads (qpos, qvel, act, ctrl, mocap, warm start, time)."""
@@ -99,8 +99,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.camera_name, self.hide_goal = camera_name, hide_goal
         self._renderer: Any = None
         self._viewer: Any = None
-        self._goal_mocap = int(self.model.body_mocapid[
-            mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "goal")])
+        self._goal_mocap = mocap_index(self.model, "goal")
         self._goal_pos = self.data.mocap_pos[self._goal_mocap]  # a view: MjData's arrays never move
 
         self._observer = ob.Observer(self.model, self.task.parts)

@@ -27,13 +27,18 @@ class Push(Expert):
     behind = 0.055
     """[m] the grip site's distance behind the object's centre when pushing."""
 
-    def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+    def line(self, obs: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
+        """Grip, object and goal positions [m], the object's xy distance to the goal [m], and the
+        unit xy direction from the object to the goal."""
         grip = self.part(obs, "grip_pos")
         obj = self.part(obs, "object_pos")
         goal = np.asarray(obs["desired_goal"])
         to_goal = (goal - obj)[:2]
         dist = float(np.linalg.norm(to_goal))
-        direction = to_goal / max(dist, 1e-6)
+        return grip, obj, goal, dist, to_goal / max(dist, 1e-6)
+
+    def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+        grip, obj, goal, dist, direction = self.line(obs)
         start = obj[:2] - self.offset(direction)
         rel = grip[:2] - start
         along = float(rel @ direction) - self.behind
@@ -93,12 +98,7 @@ class Slide(Push):
         return direction * (self.radius + 0.003) + corner
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
-        grip = self.part(obs, "grip_pos")
-        obj = self.part(obs, "object_pos")
-        goal = np.asarray(obs["desired_goal"])
-        to_goal = (goal - obj)[:2]
-        dist = float(np.linalg.norm(to_goal))
-        direction = to_goal / max(dist, 1e-6)
+        grip, obj, goal, dist, direction = self.line(obs)
         velocity = (self.part(obs, "object_velp") + self.part(obs, "grip_velp"))[:2] / 0.04
         moving = float(np.linalg.norm(velocity)) > 0.03
         glide = max(float(velocity @ direction), 0.0) ** 2 / (2 * self.deceleration)

@@ -108,6 +108,11 @@ class FreeObject:
         data.qvel[self.qvel:self.qvel + 6] = 0.0
 
 
+def mocap_index(model: mujoco.MjModel, body: str) -> int:
+    """The index into `data.mocap_pos` of a mocap body."""
+    return int(model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)])
+
+
 def sample_clear_xy(rng: np.random.Generator, center: np.ndarray, half_range: float | np.ndarray,
                     keep_out: list[tuple[np.ndarray, float]], tries: int = 1000) -> np.ndarray:
     """A uniform xy point in center +- half_range at least r [m] from every (point, r) in keep_out."""

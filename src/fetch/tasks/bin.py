@@ -7,7 +7,15 @@ import numpy as np
 
 from fetch import observation as ob
 from fetch.robot import RobotConfig
-from fetch.tasks.base import DISTANCE_THRESHOLD, TABLE_TOP, FreeObject, Task, box_geom, object_parts
+from fetch.tasks.base import (
+    DISTANCE_THRESHOLD,
+    TABLE_TOP,
+    FreeObject,
+    Task,
+    box_geom,
+    mocap_index,
+    object_parts,
+)
 
 INNER = 0.10
 """[m] half the bin's inner width (a 20 x 20 cm floor)."""
@@ -55,9 +63,9 @@ class _BinTask(Task):
 
     def bind(self, model: mujoco.MjModel) -> None:
         self.block = FreeObject(model, "block")
-        self.bin_mocap = int(model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "bin")])
-        self._bin_pos = ob.layout(self.parts)["bin_pos"]
-        self._block_pos = ob.layout(self.parts)["block_pos"]
+        self.bin_mocap = mocap_index(model, "bin")
+        layout = ob.layout(self.parts)
+        self._block_pos, self._bin_pos = layout["block_pos"], layout["bin_pos"]
 
     def place_bin(self, data: mujoco.MjData, rng: np.random.Generator, grip_start: np.ndarray) -> np.ndarray:
         center = grip_start[:2] + rng.uniform(-self.bin_range, self.bin_range, size=2)

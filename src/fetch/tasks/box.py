@@ -9,7 +9,7 @@ import numpy as np
 
 from fetch import observation as ob
 from fetch.robot import RobotConfig
-from fetch.tasks.base import TABLE_TOP, FreeObject, Task, box_geom, object_parts
+from fetch.tasks.base import TABLE_TOP, FreeObject, Task, box_geom, mocap_index, object_parts
 
 BOX = 0.08
 """[m] half the box's outer width (16 x 16 cm)."""
@@ -72,7 +72,7 @@ class _BoxTask(Task):
 
     def bind(self, model: mujoco.MjModel) -> None:
         self.lid = FreeObject(model, "lid")
-        self.box_mocap = int(model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "box")])
+        self.box_mocap = mocap_index(model, "box")
         layout = ob.layout(self.parts)
         self._lid_pos, self._box_pos = layout["lid_pos"], layout["box_pos"]
 

@@ -7,7 +7,7 @@ import numpy as np
 
 from fetch import observation as ob
 from fetch.robot import RobotConfig
-from fetch.tasks.base import GRIP, GRIPPER_PARTS, TABLE_TOP, Task, box_geom
+from fetch.tasks.base import GRIP, GRIPPER_PARTS, TABLE_TOP, Task, box_geom, mocap_index
 
 SLIDE = 0.20
 """[m] the drawer's travel."""
@@ -79,8 +79,7 @@ class _DrawerTask(Task):
         add_cabinet(spec)
 
     def bind(self, model: mujoco.MjModel) -> None:
-        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "cabinet")
-        self.cabinet_mocap = int(model.body_mocapid[body])
+        self.cabinet_mocap = mocap_index(model, "cabinet")
         joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "drawer:slide")
         self.slide_qpos = int(model.jnt_qposadr[joint])
         self.slide_qvel = int(model.jnt_dofadr[joint])
