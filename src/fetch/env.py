@@ -127,7 +127,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     @property
     def goal(self) -> np.ndarray:
         """The current goal (a copy); it lives in MjData as the goal marker's mocap position."""
-        return self.data.mocap_pos[self._goal_mocap].copy()
+        return self._goal_pos.copy()
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:

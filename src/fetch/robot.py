@@ -186,7 +186,6 @@ class Robot:
         fingers = [name(mujoco.mjtObj.mjOBJ_JOINT, f"robot0:{s}_gripper_finger_joint") for s in "rl"]
         # Observation order is the classic one: right finger, then left.
         self.finger_qpos = model.jnt_qposadr[fingers].copy()
-        self.finger_qvel = model.jnt_dofadr[fingers].copy()
         self.finger_ctrl = np.array([
             name(mujoco.mjtObj.mjOBJ_ACTUATOR, f"robot0:{s}_gripper_finger_joint") for s in "lr"
         ])
@@ -197,7 +196,6 @@ class Robot:
         self._offset = tuple(self.grip_to_mocap.tolist())
         self._low, self._high = tuple(self.low.tolist()), tuple(self.high.tolist())
         self._finger_qpos = tuple(int(i) for i in self.finger_qpos)
-        self._finger_qvel = tuple(int(i) for i in self.finger_qvel)
         self._finger_ctrl = tuple(int(i) for i in self.finger_ctrl)
         # Each actuator (l, r) with the qpos address of the finger it drives.
         self._finger_ctrl_qpos = tuple(zip(self._finger_ctrl, self._finger_qpos[::-1], strict=True))

@@ -7,8 +7,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-ACTION_STEP = 0.05
-"""[m] how far a = 1 moves the gripper's target in one step (fetch.robot.ACTION_STEP)."""
+from fetch.robot import ACTION_STEP
 
 
 class Expert(abc.ABC):

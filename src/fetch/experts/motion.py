@@ -7,6 +7,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from fetch.experts.base import Expert
+from fetch.observation import CONTROL_DT
+from fetch.robot import ACTION_STEP
 
 
 class Reach(Expert):
@@ -86,7 +88,7 @@ class Slide(Push):
     """[m] the closed fingers' half extents (x, y) around the grip site."""
     deceleration = 0.96
     """[m/s^2] the puck's measured deceleration when gliding alone."""
-    full_speed = 0.05 / 0.04
+    full_speed = ACTION_STEP / CONTROL_DT
     """[m/s] the hand's speed at |a| = 1."""
     ramp = 0.12
     """[m/s] how much faster the hand may push each step."""
@@ -99,7 +101,7 @@ class Slide(Push):
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         grip, obj, goal, dist, direction = self.line(obs)
-        velocity = (self.part(obs, "object_velp") + self.part(obs, "grip_velp"))[:2] / 0.04
+        velocity = (self.part(obs, "object_velp") + self.part(obs, "grip_velp"))[:2] / CONTROL_DT
         moving = float(np.linalg.norm(velocity)) > 0.03
         glide = max(float(velocity @ direction), 0.0) ** 2 / (2 * self.deceleration)
         if dist < 0.02 or (moving and glide >= dist - self.short):
@@ -116,7 +118,7 @@ class Slide(Push):
         # Bumps leave the puck a little faster than the hand: push at 85 % of the profile.
         profile = 0.85 * np.sqrt(2 * self.deceleration * max(dist - self.short, 0.0))
         speed = min(self.full_speed, profile, self.ramp * (self.timer + 1))
-        target = np.array([*(behind + direction * speed * 0.04), obj[2]])
+        target = np.array([*(behind + direction * speed * CONTROL_DT), obj[2]])
         return np.clip(np.append(self.move(grip, target), -1.0), -1.0, 1.0)
 
 

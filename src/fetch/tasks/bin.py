@@ -13,6 +13,7 @@ from fetch.tasks.base import (
     FreeObject,
     Task,
     box_geom,
+    goal_distance,
     mocap_index,
     object_parts,
 )
@@ -139,7 +140,7 @@ class BinPlace(_BinTask):
     # HER relabelling works.
     def is_success(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
         achieved, desired = np.asarray(achieved, np.float64), np.asarray(desired, np.float64)
-        near = np.linalg.norm(achieved - desired, axis=-1) < DISTANCE_THRESHOLD
+        near = goal_distance(achieved, desired) < DISTANCE_THRESHOLD
         low = achieved[..., 2] - desired[..., 2] < RIM_ABOVE_REST
         return (near & low).astype(np.float64)
 
