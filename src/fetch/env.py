@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
+import hashlib
 import math
 from typing import Any, SupportsFloat
 
@@ -32,6 +33,7 @@ class _Compiled:
     model: mujoco.MjModel
     start_state: np.ndarray
     grip_start: np.ndarray
+    spec: mujoco.MjSpec
 
 
 @functools.cache
@@ -56,7 +58,7 @@ def _compile(task_type: type[Task]) -> _Compiled:
     robot.set_target(data, data.site_xpos[robot.grip_site].copy())
     state = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
     mujoco.mj_getState(model, data, state, STATE_SPEC)
-    return _Compiled(model, state, data.site_xpos[robot.grip_site].copy())
+    return _Compiled(model, state, data.site_xpos[robot.grip_site].copy(), spec)
 
 
 class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
@@ -88,6 +90,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.robot = Robot(self.task.robot, self.model)
         self.robot.bind(self.data)
         self.task.bind(self.model)
+        self._compiled = compiled
         self._start_state = compiled.start_state
         self._grip_start = compiled.grip_start
         cameras = [self.model.camera(i).name for i in range(self.model.ncam)]
@@ -196,10 +199,19 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     # -- MuJoCo state --------------------------------------------------------------------
 
-    def get_state(self) -> np.ndarray:
-        """The full integration state (`mj_getState`, mjSTATE_INTEGRATION), a fresh array."""
+    def get_state(self, out: np.ndarray | None = None) -> np.ndarray:
+        """The full integration state (`mj_getState`, mjSTATE_INTEGRATION): a fresh array, or
+        written into `out` (float64, shape `(state_size,)`) and returned."""
+        if out is not None:
+            mujoco.mj_getState(self.model, self.data, out, STATE_SPEC)
+            return out
         mujoco.mj_getState(self.model, self.data, self._state_buf, STATE_SPEC)
         return self._state_buf.copy()
+
+    @property
+    def state_size(self) -> int:
+        """Length of `get_state()`."""
+        return int(self._state_buf.shape[0])
 
     def set_state(self, state: np.ndarray) -> None:
         """Restore a state from `get_state`; the goal comes back with it."""
@@ -212,6 +224,16 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         # mj_forward overwrites the solver's warm start on some mujoco versions (3.3); put the
         # saved one back so the next step is bit-identical to the original run.
         mujoco.mj_setState(self.model, self.data, state, STATE_SPEC)
+
+    def model_xml(self) -> str:
+        """The compiled scene as MJCF (what a dataset stores to say which model it was made with)."""
+        return str(self._compiled.spec.to_xml())
+
+    def model_hash(self) -> str:
+        """SHA-256 of the compiled model (MJB bytes): equal models, equal hashes, wherever installed."""
+        buffer = np.empty(mujoco.mj_sizeModel(self._compiled.model), np.uint8)
+        mujoco.mj_saveModel(self._compiled.model, None, buffer)
+        return hashlib.sha256(buffer.tobytes()).hexdigest()
 
     def observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """The observation and info of the current state (e.g. after `set_state`)."""

@@ -16,3 +16,7 @@ class UnknownNameError(FetchError, KeyError):
 
     def __str__(self) -> str:  # KeyError would quote the message
         return str(self.args[0])
+
+
+class DatasetError(FetchError):
+    """A dataset that cannot be read or written as asked: missing, foreign, corrupt, locked, mismatched."""

@@ -1,0 +1,31 @@
+"""A small progress bar on stderr for long commands (only when stderr is a terminal)."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Iterable, Iterator
+from typing import TypeVar
+
+T = TypeVar("T")
+
+
+def progress(items: Iterable[T], total: int, label: str, unit: str = "demos") -> Iterator[T]:
+    """Yield `items`, drawing `label [####    ] i/total unit, rate/s` as they pass."""
+    stream = sys.stderr
+    live = stream.isatty()
+    start = last = time.perf_counter()
+    done = 0
+    for item in items:
+        yield item
+        done += 1
+        now = time.perf_counter()
+        if live and (now - last > 0.1 or done == total):
+            last = now
+            width = 24
+            filled = int(width * done / total) if total else width
+            rate = done / (now - start) if now > start else 0.0
+            stream.write(f"\r{label} [{'#' * filled}{' ' * (width - filled)}] {done}/{total} {unit}, {rate:.1f}/s")
+            stream.flush()
+    if live and done:
+        stream.write("\n")

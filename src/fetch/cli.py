@@ -1,0 +1,174 @@
+"""`gym-fetch`: collect demonstrations, inspect, replay and convert datasets."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Callable, Sequence
+
+Command = Callable[[argparse.Namespace], int]
+
+
+def add_collect_arguments(p: argparse.ArgumentParser) -> None:
+    """The collector's flags: the seed script's (same names and meaning) plus ours."""
+    from fetch.tasks import ENV_IDS
+
+    p.add_argument("--env", default="Bin-pick-v2", metavar="ID", help=f"one of: {', '.join(ENV_IDS)}")
+    p.add_argument("--out", default="demos", help="output directory (resumed if it holds a matching dataset)")
+    p.add_argument("--episodes", type=int, default=0, help="demos to save in this session; 0: until you quit")
+    p.add_argument("--max-steps", type=int, default=500, help="steps per attempt (replaces the 50-step limit)")
+    p.add_argument("--seed", type=int, default=0, help="attempt k of the dataset resets with seed + k")
+    p.add_argument("--control-hz", type=float, default=None,
+                   help="control rate [Hz]; default 25 (real time) with a person or a window, "
+                        "as fast as possible for expert/scripted without a window; 0: as fast as possible")
+    p.add_argument("--success-hold-steps", type=int, default=10, help="success must hold this many steps")
+    p.add_argument("--stop-on-success", action=argparse.BooleanOptionalAction, default=True,
+                   help="end the attempt once success has held (default on)")
+    p.add_argument("--ignore-env-done", dest="ignore_env_done", action="store_true", default=False,
+                   help="keep going when the env reports terminated (never past --max-steps)")
+    p.add_argument("--respect-env-done", dest="ignore_env_done", action="store_false",
+                   help="end the attempt when the env reports terminated (default)")
+    p.add_argument("--keep-failures", action="store_true", help="also save failed attempts (in mask/failed)")
+    p.add_argument("--render", default="auto", choices=["auto", "human", "rgb_array", "none"],
+                   help="auto: a window when there is a display; rgb_array (the seed's) is headless like none")
+    p.add_argument("--device", default="gamepad", choices=["gamepad", "xbox", "keyboard", "scripted", "expert"],
+                   help="xbox is the seed's name for gamepad")
+    p.add_argument("--format", default="hdf5", choices=["hdf5", "npz"], help="npz: the seed's per-demo files")
+    p.add_argument("--reward-type", default="sparse", choices=["sparse", "dense"])
+    p.add_argument("--cameras", default="", help="record these cameras' images too, e.g. front,wrist")
+    p.add_argument("--image-size", type=int, default=84, help="recorded image size [px] (square)")
+    p.add_argument("--verbose", action="store_true", help="print how every attempt ended")
+    g = p.add_argument_group("gamepad (the seed's flags; raw indices override the SDL layout)")
+    g.add_argument("--profile", default=None, help="a mapping profile written by `gym-fetch gamepad --calibrate`")
+    g.add_argument("--frame", default="camera", choices=["camera", "world"],
+                   help="camera: stick 'up' moves away from the viewer; world: the seed's fixed mapping")
+    g.add_argument("--deadzone", type=float, default=0.10)
+    g.add_argument("--pos-scale", type=float, default=1.0)
+    g.add_argument("--invert-y", dest="invert_y", action="store_true", default=True)
+    g.add_argument("--no-invert-y", dest="invert_y", action="store_false")
+    g.add_argument("--gripper-open", type=float, default=1.0)
+    g.add_argument("--gripper-close", type=float, default=-1.0)
+    for flag in ("--axis-lx", "--axis-ly", "--axis-lt", "--axis-rt", "--button-x", "--button-y", "--button-start"):
+        g.add_argument(flag, type=int, default=None, help="raw joystick index (overrides the SDL layout)")
+    p.add_argument("--scripted-json", default=None, help="JSON list of events for --device scripted")
+
+
+def run_collect(args: argparse.Namespace) -> int:
+    import fetch  # noqa: F401  (registers the ids)
+    from fetch.teleop import build
+
+    session = build.session_from_args(args)
+    if session is None:
+        return 2
+    summary = session.run()
+    print(summary.describe(), flush=True)
+    return 1 if summary.error else 0
+
+
+def run_info(args: argparse.Namespace) -> int:
+    from fetch.dataset import open_dataset, summarize, validate
+
+    with open_dataset(args.file) as ds:
+        s = summarize(ds)
+        low, high, mean = s.lengths
+        print(f"{s.path}\n  env         {s.env_id} {ds.env_kwargs}")
+        print(f"  demos       {s.demos} ({s.successful} successful), {s.steps} steps; length min {low} "
+              f"mean {mean:.1f} max {high}")
+        print("  masks       " + ", ".join(f"{k} {v}" for k, v in sorted(s.masks.items())))
+        print(f"  actions     in [{s.action_range[0]:.3f}, {s.action_range[1]:.3f}]")
+        print("  devices     " + (", ".join(f"{k} {v}" for k, v in sorted(s.devices.items())) or "-"))
+        print(f"  control     {s.achieved_hz:.1f} Hz achieved (mean over demos; 0: unpaced)")
+        print(f"  cameras     {', '.join(s.cameras) or 'none'}")
+        print(f"  settings    {ds.settings}")
+        print("  versions    " + ", ".join(f"{k} {v}" for k, v in s.versions.items()))
+        problems = validate(ds)
+    if problems:
+        print(f"INVALID: {len(problems)} problem(s):")
+        for p in problems[:50]:
+            print(f"  - {p}")
+        return 1
+    print("valid")
+    return 0
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    import fetch  # noqa: F401
+    from fetch._progress import progress
+    from fetch.dataset import open_dataset
+    from fetch.dataset.replay import check_demo, make_replay_env
+
+    if args.video:
+        from fetch.dataset.video import render_video
+
+        with open_dataset(args.file) as ds:
+            names = ds.select(args.demo)
+            render_video(ds, names, args.video, camera=args.camera, size=args.size, fps=args.fps)
+        print(f"wrote {args.video}")
+        if not args.check:
+            return 0
+    failures = 0
+    largest: tuple[float, str] = (0.0, "")
+    with open_dataset(args.file) as ds:
+        names = ds.select(args.demo)
+        env = make_replay_env(ds)
+        for name in progress(names, len(names), "replay"):
+            r = check_demo(ds, name, env)
+            ok = r.exact and r.success_recorded == r.success_replayed
+            failures += not ok
+            dev = r.largest
+            if dev.value >= largest[0]:
+                largest = (dev.value, f"{name} {dev.where}")
+            if not ok or args.verbose:
+                success = "" if r.success_recorded == r.success_replayed else \
+                    f"; success recorded {r.success_recorded}, replayed {r.success_replayed}"
+                print(f"{name}: {r.steps} steps, {'exact' if r.exact else 'DEVIATES'}; largest deviation "
+                      f"{dev.value:.3g} at {dev.where}{success}")
+        env.close()
+    print(f"replayed {len(names)} demo(s): {len(names) - failures} exact, {failures} deviating; largest "
+          f"deviation {largest[0]:.3g}" + (f" ({largest[1]})" if largest[0] else ""))
+    return 1 if failures else 0
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="gym-fetch", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    c = sub.add_parser("collect", help="record demonstrations (gamepad, keyboard, scripted or expert)")
+    add_collect_arguments(c)
+    c.set_defaults(run=run_collect)
+    i = sub.add_parser("info", help="summarise and validate a dataset; non-zero exit if it is inconsistent")
+    i.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
+    i.set_defaults(run=run_info)
+    r = sub.add_parser("replay", help="re-simulate demos and compare (--check), or render them (--video)")
+    r.add_argument("file")
+    r.add_argument("--demo", default=None, help="a demo index or name (default: all)")
+    r.add_argument("--check", action="store_true", help="compare observations and states bit for bit")
+    r.add_argument("--video", default=None, help="write an .mp4 or .gif of the demo(s) from their states")
+    r.add_argument("--camera", default="front")
+    r.add_argument("--size", type=int, default=480, help="video frame size [px] (square)")
+    r.add_argument("--fps", type=float, default=25.0, help="video frame rate (25: real time)")
+    r.add_argument("--verbose", action="store_true", help="a line per demo, exact or not")
+    r.set_defaults(run=run_replay)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from fetch.errors import FetchError
+
+    args = _parser().parse_args(argv)
+    if args.command == "replay" and not args.video:
+        args.check = True
+    try:
+        return int(args.run(args))
+    except FetchError as e:
+        print(f"gym-fetch {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,94 @@
+"""Re-simulating saved demos: from their seed and from their saved states, compared bit for bit."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from fetch.dataset.reader import Dataset
+
+
+@dataclasses.dataclass(frozen=True)
+class Deviation:
+    """The largest difference found: its size and where."""
+
+    value: float
+    where: str
+
+
+@dataclasses.dataclass(frozen=True)
+class ReplayCheck:
+    """How one demo's replay compares with what was recorded."""
+
+    name: str
+    steps: int
+    reset: Deviation
+    """`env.reset(seed)` vs the recorded first observation and `states[0]`."""
+    observations: Deviation
+    """Each step's observation vs `next_obs` (from the restored `states[0]`)."""
+    states: Deviation
+    """Each step's state vs `states[1:]`."""
+    success_recorded: bool
+    success_replayed: bool
+
+    @property
+    def exact(self) -> bool:
+        return self.reset.value == 0 and self.observations.value == 0 and self.states.value == 0
+
+    @property
+    def largest(self) -> Deviation:
+        return max((self.reset, self.observations, self.states), key=lambda d: d.value)
+
+
+def make_replay_env(ds: Dataset) -> Any:
+    """The dataset's env, unwrapped (no TimeLimit: demos may be longer than 50 steps)."""
+    return gym.make(ds.env_id, **ds.env_kwargs).unwrapped
+
+
+def _largest(replayed: np.ndarray, recorded: np.ndarray, label: str, row_offset: int = 0) -> Deviation:
+    if replayed.size == 0:
+        return Deviation(0.0, label)
+    diff = np.abs(replayed - recorded)
+    diff = np.where(np.isnan(diff), np.inf, diff)
+    flat = int(np.argmax(diff))
+    row, col = np.unravel_index(flat, diff.shape) if diff.ndim > 1 else (flat, 0)
+    return Deviation(float(diff.flat[flat]), f"{label}[{int(row) + row_offset}, {int(col)}]")
+
+
+def check_demo(ds: Dataset, name: str, env: Any | None = None) -> ReplayCheck:
+    """Replay one demo: reset with its seed (compared with the start it recorded), restore
+    `states[0]`, apply the recorded actions, compare every observation and state."""
+    env = env if env is not None else make_replay_env(ds)
+    group = ds.demo(name)
+    seed = int(group.attrs["seed"])
+    actions = group["actions"][()]
+    states = group["states"][()]
+    keys = [k for k, _ in ds.layout.obs_sizes]
+    first = {k: group[f"obs/{k}"][:1] for k in keys}
+    recorded_next = {k: group[f"next_obs/{k}"][()] for k in keys}
+    t = len(actions)
+
+    obs, _ = env.reset(seed=seed)
+    start = env.get_state()
+    reset_devs = [_largest(start[None], states[:1], "states")]
+    reset_devs += [_largest(obs[k][None], first[k], f"obs/{k}") for k in keys if len(first[k])]
+    reset = max(reset_devs, key=lambda d: d.value)
+
+    env.set_state(states[0])
+    replayed = {k: np.empty_like(recorded_next[k]) for k in keys}
+    replayed_states = np.empty_like(states[1:])
+    success = False
+    for i in range(t):
+        obs, _, _, _, info = env.step(actions[i])
+        for k in keys:
+            replayed[k][i] = obs[k]
+        env.get_state(out=replayed_states[i])
+        success = success or info["is_success"] >= 1.0
+    observations = max((_largest(replayed[k], recorded_next[k], f"next_obs/{k}") for k in keys),
+                       key=lambda d: d.value, default=Deviation(0.0, "next_obs"))
+    return ReplayCheck(name=name, steps=t, reset=reset, observations=observations,
+                       states=_largest(replayed_states, states[1:], "states", row_offset=1),
+                       success_recorded=bool(group["is_success"][()].any()), success_replayed=success)

@@ -1,0 +1,147 @@
+"""The dataset's layout, declared once: checked on write, on read, and printed in the README."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+FORMAT = "gym-fetch-v2/demos"
+FORMAT_VERSION = 1
+INDEX_NAME = "demos.hdf5"
+"""The dataset file inside an output directory; it links to one file per demo."""
+EPISODES_DIR = "episodes"
+"""Where the per-demo files live, next to the index (external links are relative to it)."""
+ENV_TYPE_GYM = 2
+"""robomimic's `EnvType.GYM_TYPE`, the `type` in `env_args`."""
+OBS_KEYS = ("observation", "achieved_goal", "desired_goal")
+
+
+@dataclasses.dataclass(frozen=True)
+class Field:
+    """One array of a demo group: `path` relative to `data/demo_<i>`, rows = T + `extra_rows`."""
+
+    path: str
+    dtype: str
+    tail: tuple[int, ...]
+    doc: str
+    extra_rows: int = 0
+
+    def shape(self, num_samples: int) -> tuple[int, ...]:
+        return (num_samples + self.extra_rows, *self.tail)
+
+
+@dataclasses.dataclass(frozen=True)
+class Layout:
+    """What every demo of one dataset holds, given the env's sizes and the recorded cameras."""
+
+    obs_sizes: tuple[tuple[str, int], ...]
+    state_size: int
+    cameras: tuple[str, ...] = ()
+    image_size: int = 0
+
+    def __post_init__(self) -> None:
+        if self.cameras and self.image_size <= 0:
+            raise ValueError(f"image_size must be positive pixels when cameras are recorded, got {self.image_size}")
+
+    @property
+    def obs_keys(self) -> tuple[str, ...]:
+        return tuple(k for k, _ in self.obs_sizes) + tuple(image_key(c) for c in self.cameras)
+
+    def fields(self) -> tuple[Field, ...]:
+        out = [Field("actions", "float32", (4,), "the action applied at step t, each value in [-1, 1]")]
+        for prefix, when in (("obs", "before"), ("next_obs", "after")):
+            for key, size in self.obs_sizes:
+                out.append(Field(f"{prefix}/{key}", "float64", (size,), f"`{key}` {when} step t"))
+            for camera in self.cameras:
+                out.append(Field(f"{prefix}/{image_key(camera)}", "uint8", (self.image_size, self.image_size, 3),
+                                 f"camera `{camera}` image {when} step t"))
+        out += [
+            Field("rewards", "float64", (), "reward of step t"),
+            Field("dones", "uint8", (), "1 at the demo's last step, else 0"),
+            Field("terminated", "bool", (), "the env's `terminated` of step t"),
+            Field("truncated", "bool", (), "the env's `truncated` of step t (the --max-steps limit)"),
+            Field("is_success", "uint8", (), "`info['is_success']` after step t"),
+            Field("states", "float64", (self.state_size,),
+                  "`mj_getState` (mjSTATE_INTEGRATION, mocap included) before every step and after the last",
+                  extra_rows=1),
+            Field("timestamps", "float64", (), "[s] wall-clock (Unix) time at which step t was applied"),
+        ]
+        return tuple(out)
+
+    def with_cameras(self, cameras: tuple[str, ...], image_size: int) -> Layout:
+        return dataclasses.replace(self, cameras=cameras, image_size=image_size)
+
+
+def image_key(camera: str) -> str:
+    return f"{camera}_image"
+
+
+DEMO_ATTRS: tuple[tuple[str, str], ...] = (
+    ("num_samples", "T, the number of steps (robomimic)"),
+    ("seed", "the `env.reset(seed=...)` of this episode"),
+    ("success", "success held for the session's --success-hold-steps"),
+    ("env_id", "the Gymnasium id"),
+    ("device", "what produced the actions: gamepad, keyboard, scripted, expert"),
+    ("attempt", "the attempt number within the dataset (0-based, counts discarded attempts)"),
+    ("control_hz", "[Hz] target control rate (0: as fast as possible)"),
+    ("achieved_hz", "[Hz] achieved control rate"),
+    ("started", "[s] Unix time of the reset"),
+    ("ended", "[s] Unix time of the last step"),
+)
+
+DATA_ATTRS: tuple[tuple[str, str], ...] = (
+    ("total", "steps in all demos (robomimic)"),
+    ("env_args", "JSON `{env_name, type, env_kwargs}` (robomimic)"),
+    ("format", f"`{FORMAT}`"),
+    ("format_version", f"{FORMAT_VERSION}"),
+    ("versions", "JSON: fetch, mujoco, gymnasium, numpy, h5py versions that created the file"),
+    ("created", "[s] Unix time the dataset was created"),
+    ("settings", "JSON: the collection settings a resumed session must match"),
+    ("layout", "JSON: observation sizes, state size, cameras, image size"),
+    ("model_xml", "the compiled MuJoCo model as MJCF"),
+    ("model_hash", "SHA-256 of the compiled model (MJB); a resumed session must match it"),
+    ("attempts", "attempts made so far (the next attempt's number)"),
+)
+
+
+def layout_to_json(layout: Layout) -> str:
+    return json.dumps({"obs_sizes": [list(x) for x in layout.obs_sizes], "state_size": layout.state_size,
+                       "cameras": list(layout.cameras), "image_size": layout.image_size})
+
+
+def layout_from_json(text: str) -> Layout:
+    raw = json.loads(text)
+    return Layout(obs_sizes=tuple((str(k), int(n)) for k, n in raw["obs_sizes"]), state_size=int(raw["state_size"]),
+                  cameras=tuple(raw.get("cameras", ())), image_size=int(raw.get("image_size", 0)))
+
+
+def demo_name(index: int) -> str:
+    return f"demo_{index}"
+
+
+def demo_index(name: str) -> int:
+    """The integer of `demo_<i>`; ValueError for any other name."""
+    prefix, _, number = name.partition("_")
+    if prefix != "demo" or not number.isdigit():
+        raise ValueError(f"{name!r} is not a demo name (demo_<integer>)")
+    return int(number)
+
+
+def check_arrays(arrays: Mapping[str, Any], layout: Layout, num_samples: int) -> list[str]:
+    """Problems of one demo's arrays against the layout (empty when it conforms)."""
+    problems = []
+    for field in layout.fields():
+        if field.path not in arrays:
+            problems.append(f"missing {field.path}")
+            continue
+        array = arrays[field.path]
+        want = field.shape(num_samples)
+        if tuple(array.shape) != want:
+            problems.append(f"{field.path} has shape {tuple(array.shape)}, expected {want}")
+        if np.dtype(array.dtype) != np.dtype(field.dtype):
+            problems.append(f"{field.path} has dtype {array.dtype}, expected {field.dtype}")
+    return problems

@@ -1,0 +1,369 @@
+"""The crash-safe dataset writer: one file per demo, an index rewritten atomically, one writer at a time.
+
+On disk, an output directory holds `demos.hdf5` (robomimic's layout; each `data/demo_<i>` is an
+HDF5 external link) and `episodes/demo_<i>.hdf5`. Every file is written under a temporary name,
+flushed to disk and renamed, so a kill at any instant leaves the previous complete version. A demo
+counts as saved once the index that lists it is in place; a demo file that a kill left out of
+the index is complete (it was renamed after its flush) and is adopted by the next session.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import errno
+import fcntl
+import io
+import json
+import os
+import pathlib
+import queue
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import h5py
+import numpy as np
+
+from fetch.dataset import schema
+from fetch.dataset.episode import Demo
+from fetch.errors import DatasetError
+
+VALID_EVERY = 10
+"""Every 10th successful demo goes to `mask/valid` (a stable 90/10 split as demos are appended)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Header:
+    """What a dataset is of: the env, the recorded layout, the settings a resumed session must match."""
+
+    env_id: str
+    env_kwargs: dict[str, Any]
+    layout: schema.Layout
+    settings: dict[str, Any]
+    model_xml: str
+    model_hash: str
+    versions: dict[str, str]
+
+    def env_args(self) -> str:
+        return json.dumps({"env_name": self.env_id, "type": schema.ENV_TYPE_GYM, "env_kwargs": self.env_kwargs})
+
+
+@dataclasses.dataclass
+class _Entry:
+    name: str
+    num_samples: int
+    success: bool
+    mask: str  # "train", "valid" or "failed"
+
+
+def fsync_path(path: pathlib.Path) -> None:
+    """Flush a file's (or directory's) data to the disk, so a rename after it is durable."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def hdf5_bytes(build: Callable[[h5py.File], None]) -> bytes:
+    """An HDF5 file built in memory. Files reach the disk only through `atomic_write`: HDF5 itself
+    does not survive a failed write (it crashed the process on a full disk in our tests)."""
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as f:
+        build(f)
+    return buffer.getvalue()
+
+
+def atomic_write(path: pathlib.Path, content: bytes) -> None:
+    """Replace `path` with `content` all at once: temp file, fsync, rename, fsync the directory.
+    On failure (OSError) the old `path` is untouched and the temp file removed."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(content)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+        fsync_path(path.parent)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def write_demo_file(path: pathlib.Path, name: str, demo: Demo) -> None:
+    """Write one demo as the group `/<name>` of a new HDF5 file, atomically."""
+    atomic_write(path, hdf5_bytes(lambda f: write_demo_group(f.create_group(name), demo)))
+
+
+def write_demo_group(group: h5py.Group, demo: Demo) -> None:
+    for key, value in demo.attrs.items():
+        group.attrs[key] = value
+    for key, array in demo.arrays.items():
+        # Images compress well and are large; the rest is small and read often, so stays raw.
+        options: dict[str, Any] = {"compression": "gzip", "compression_opts": 4} if array.dtype == np.uint8 \
+            and array.ndim == 4 else {}
+        group.create_dataset(key, data=array, **options)
+
+
+class BackgroundWriter:
+    """Saves demos from a thread, so committing never stalls the control loop; one per directory.
+
+    `commit` numbers a demo, queues it and returns at once; `_save` (a subclass's) writes it and
+    `on_saved(name, demo)` is called from the writing thread once it is durable. A failure stops
+    further saving; the next `commit` and `close` raise it. Attempts are counted across sessions.
+    """
+
+    def __init__(self, out_dir: str | os.PathLike[str], on_saved: Callable[[str, Demo], None] | None) -> None:
+        self.out_dir = pathlib.Path(out_dir)
+        self.on_saved = on_saved
+        try:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise DatasetError(f"cannot create the output directory {self.out_dir}: {e.strerror}") from e
+        self._lock_file = self._lock()
+        self.attempts = 0
+        self.saved = 0
+        self.recovered = 0
+        self._next_index = 0
+        self.error: BaseException | None = None
+        self._queue: queue.Queue[tuple[str, Demo] | None] = queue.Queue()
+        self._thread = threading.Thread(target=self._run, name="fetch-dataset-writer", daemon=True)
+
+    def _start(self) -> None:
+        self._thread.start()
+
+    def _lock(self) -> Any:
+        handle = open(self.out_dir / ".lock", "a+")  # noqa: SIM115 (held until close)
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as e:
+            handle.close()
+            raise DatasetError(f"{self.out_dir} is in use by another collector (its lock file {self.out_dir}/.lock "
+                               "is held); wait for it to finish or choose another --out") from e
+        return handle
+
+    def _unlock(self) -> None:
+        with contextlib.suppress(OSError):
+            fcntl.flock(self._lock_file, fcntl.LOCK_UN)
+        self._lock_file.close()
+
+    def reserve_attempt(self) -> int:
+        """The number of the attempt about to start."""
+        number = self.attempts
+        self.attempts += 1
+        return number
+
+    def demo_name(self, index: int) -> str:
+        return schema.demo_name(index)
+
+    def commit(self, demo: Demo) -> str:
+        """Queue a finished demo for saving and return its name; raises the writer's earlier failure."""
+        if self.error is not None:
+            raise DatasetError(f"saving to {self.out_dir} failed earlier: {self.error}") from self.error
+        name = self.demo_name(self._next_index)
+        self._next_index += 1
+        self._queue.put((name, demo))
+        return name
+
+    def _run(self) -> None:
+        while True:
+            item = self._queue.get()
+            try:
+                if item is None:
+                    return
+                if self.error is None:
+                    name, demo = item
+                    try:
+                        self._save(name, demo)
+                    except OSError as e:
+                        self.error = DatasetError(self._describe(name, e))
+                        continue
+                    except Exception as e:  # a bug must not end the thread silently
+                        self.error = e
+                        continue
+                    self.saved += 1
+                    if self.on_saved is not None:
+                        self.on_saved(name, demo)
+            finally:
+                self._queue.task_done()
+
+    def _save(self, name: str, demo: Demo) -> None:
+        raise NotImplementedError
+
+    def _describe(self, name: str, e: OSError) -> str:
+        reason = {errno.EFBIG: "the file-size limit was reached", errno.ENOSPC: "the disk is full",
+                  errno.EACCES: "permission denied", errno.EROFS: "the file system is read-only"}.get(
+            e.errno or 0, str(e))
+        return f"could not save {name} in {self.out_dir}: {reason}; the demos saved before are intact"
+
+    def _finish(self) -> None:
+        """Called by `close` after the last save (e.g. to record the attempt count)."""
+
+    def flush(self) -> None:
+        """Wait until every committed demo is on disk (or the writer failed)."""
+        self._queue.join()
+
+    def close(self) -> None:
+        """Finish saving, release the directory; re-raise a failure."""
+        self._queue.put(None)
+        if self._thread.is_alive():
+            self._thread.join()
+        try:
+            if self.error is None:
+                try:
+                    self._finish()
+                except OSError as e:
+                    self.error = DatasetError(self._describe("the index", e))
+        finally:
+            self._unlock()
+        if self.error is not None:
+            raise self.error
+
+    def __enter__(self) -> BackgroundWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class DatasetWriter(BackgroundWriter):
+    """Appends demos to a robomimic-layout dataset in `out_dir` (see the module docstring).
+
+    Raises DatasetError if another writer holds the directory, or if it already holds a dataset of
+    a different env, layout or settings.
+    """
+
+    def __init__(self, out_dir: str | os.PathLike[str], header: Header,
+                 on_saved: Callable[[str, Demo], None] | None = None) -> None:
+        super().__init__(out_dir, on_saved)
+        self.index_path = self.out_dir / schema.INDEX_NAME
+        self.episodes_dir = self.out_dir / schema.EPISODES_DIR
+        self.header = header
+        self._entries: list[_Entry] = []
+        self.created = time.time()
+        try:
+            self.episodes_dir.mkdir(exist_ok=True)
+            if self.index_path.exists():
+                self._resume()
+            else:
+                self._write_index()
+        except OSError as e:
+            self._unlock()
+            raise DatasetError(f"cannot write a dataset in {self.out_dir}: {e}") from e
+        except BaseException:
+            self._unlock()
+            raise
+        self.saved = len(self._entries)
+        self._start()
+
+    # -- resume -------------------------------------------------------------------------------
+
+    def _resume(self) -> None:
+        from fetch.dataset.reader import open_dataset
+
+        for stale in self.out_dir.glob(".*.tmp"):
+            stale.unlink()
+        for stale in self.episodes_dir.glob(".*.tmp"):
+            stale.unlink()
+        with open_dataset(self.index_path) as existing:
+            self._check_matches(existing.header_attrs())
+            masks = existing.masks()
+            for name in existing.demo_names:
+                group = existing.demo(name)
+                success = bool(group.attrs["success"])
+                mask = next((k for k in ("train", "valid", "failed") if name in masks.get(k, ())),
+                            self._mask_for(success))
+                self._entries.append(_Entry(name, int(group.attrs["num_samples"]), success, mask))
+            self.attempts = int(existing.data_attrs.get("attempts", 0))
+            self.created = float(existing.data_attrs.get("created", self.created))
+        known = {e.name for e in self._entries}
+        self._next_index = 1 + max((schema.demo_index(e.name) for e in self._entries), default=-1)
+        # Demo files renamed into place just before a kill, while the index was being rewritten.
+        orphans = []
+        for path in self.episodes_dir.glob("demo_*.hdf5"):
+            name = path.stem
+            with contextlib.suppress(ValueError):
+                if name not in known and schema.demo_index(name) >= self._next_index:
+                    orphans.append((schema.demo_index(name), name, path))
+        for _, name, path in sorted(orphans):
+            try:
+                with h5py.File(path, "r") as f:
+                    group = f[name]
+                    entry = _Entry(name, int(group.attrs["num_samples"]), bool(group.attrs["success"]),
+                                   self._mask_for(bool(group.attrs["success"])))
+                    self.attempts = max(self.attempts, int(group.attrs["attempt"]) + 1)
+            except (OSError, KeyError):
+                continue  # not a complete demo file; it was never listed, so nothing is lost
+            self._entries.append(entry)
+            self._next_index = schema.demo_index(name) + 1
+            self.recovered += 1
+        if self.recovered:
+            self._write_index()
+
+    def _check_matches(self, attrs: dict[str, Any]) -> None:
+        h = self.header
+        mine = {"env_id": h.env_id, "env_kwargs": h.env_kwargs, "layout": schema.layout_to_json(h.layout),
+                "settings": h.settings, "model_hash": h.model_hash}
+        differences = [f"{key}: the dataset has {attrs.get(key)!r}, this session {value!r}"
+                       for key, value in mine.items() if attrs.get(key) != value]
+        if differences:
+            raise DatasetError(f"{self.index_path} holds demos recorded differently, so this session cannot "
+                               "append to it:\n  " + "\n  ".join(differences)
+                               + "\nuse the same settings, or another --out (and `gym-fetch merge` later)")
+
+    # -- masks and the index ------------------------------------------------------------------
+
+    def _mask_for(self, success: bool) -> str:
+        if not success:
+            return "failed"
+        rank = sum(1 for e in self._entries if e.success)
+        return "valid" if rank % VALID_EVERY == VALID_EVERY - 1 else "train"
+
+    def _write_index(self) -> None:
+        atomic_write(self.index_path, hdf5_bytes(self._build_index))
+
+    def _build_index(self, f: h5py.File) -> None:
+        h = self.header
+        data = f.create_group("data")
+        attrs = {
+            "total": sum(e.num_samples for e in self._entries),
+            "env_args": h.env_args(),
+            "format": schema.FORMAT,
+            "format_version": schema.FORMAT_VERSION,
+            "versions": json.dumps(h.versions),
+            "created": self.created,
+            "settings": json.dumps(h.settings, sort_keys=True),
+            "layout": schema.layout_to_json(h.layout),
+            "model_xml": h.model_xml,
+            "model_hash": h.model_hash,
+            "attempts": self.attempts,
+        }
+        for key, value in attrs.items():
+            data.attrs[key] = value
+        links = data.id.links
+        for e in self._entries:
+            target = f"{schema.EPISODES_DIR}/{e.name}.hdf5".encode()
+            links.create_external(e.name.encode(), target, f"/{e.name}".encode())
+        mask = f.create_group("mask")
+        for key in ("train", "valid", "failed"):
+            names = [e.name for e in self._entries if e.mask == key]
+            mask.create_dataset(key, data=np.array(names, dtype="S"), shape=(len(names),),
+                                dtype=f"S{max((len(n) for n in names), default=1)}")
+
+    def _save(self, name: str, demo: Demo) -> None:
+        write_demo_file(self.episodes_dir / f"{name}.hdf5", name, demo)
+        self._entries.append(_Entry(name, demo.num_samples, demo.success, self._mask_for(demo.success)))
+        try:
+            self._write_index()
+        except BaseException:
+            # The demo file stays: it is complete, and the next session adopts it.
+            self._entries.pop()
+            raise
+
+    def _finish(self) -> None:
+        self._write_index()  # the attempt count
+
+

@@ -1,0 +1,1 @@
+"""Collecting demonstrations: devices (gamepad, keyboard, scripted, expert), the control loop, the viewer."""

@@ -1,0 +1,50 @@
+"""From command-line arguments to a collection session: config, env, device, window."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import Any
+
+from fetch.errors import FetchError
+from fetch.teleop.devices import Device, ExpertDevice, ScriptedDevice, default_script, load_script
+from fetch.teleop.session import CollectConfig, Display, Session, make_env
+
+
+def config_from_args(args: argparse.Namespace) -> CollectConfig:
+    cameras = tuple(c.strip() for c in args.cameras.split(",") if c.strip()) if args.cameras else ()
+    return CollectConfig(
+        env_id=args.env, out=args.out, episodes=args.episodes, max_steps=args.max_steps, seed=args.seed,
+        control_hz=args.control_hz, success_hold_steps=args.success_hold_steps,
+        stop_on_success=args.stop_on_success, ignore_env_done=args.ignore_env_done,
+        keep_failures=args.keep_failures, device="gamepad" if args.device == "xbox" else args.device,
+        render=args.render, format=args.format, reward_type=args.reward_type, cameras=cameras,
+        image_size=args.image_size, verbose=args.verbose)
+
+
+def wants_window(config: CollectConfig) -> bool:
+    if config.render == "human":
+        return True
+    return config.render == "auto" and bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) \
+        and config.human
+
+
+def make_device(config: CollectConfig, args: argparse.Namespace, env: Any, window: Any) -> Device:
+    if config.device == "expert":
+        return ExpertDevice(env)
+    if config.device == "scripted":
+        return ScriptedDevice(load_script(args.scripted_json) if args.scripted_json else default_script())
+    raise FetchError(f"--device {config.device} is not available in this version; use --device expert or scripted")
+
+
+def session_from_args(args: argparse.Namespace) -> Session | None:
+    config = config_from_args(args)
+    env = make_env(config)
+    window: Display | None = None
+    if wants_window(config):
+        raise FetchError("the viewer window is not available in this version; use --render none")
+    device = make_device(config, args, env, window)
+    print(f"collecting {config.env_id} with {config.device} into {config.out} "
+          f"({'until you quit' if not config.episodes else f'{config.episodes} demos'})", file=sys.stderr)
+    return Session(config, device, env=env, display=window)

@@ -1,0 +1,332 @@
+"""The collection loop: attempts at a fixed control rate, success held, successful attempts saved."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.metadata
+import math
+import sys
+import time
+from collections.abc import Callable
+from typing import Any, Protocol, cast
+
+import gymnasium as gym
+import numpy as np
+
+import fetch
+from fetch.dataset import schema
+from fetch.dataset.episode import Demo, EpisodeBuffer
+from fetch.dataset.writer import BackgroundWriter, DatasetWriter, Header
+from fetch.errors import FetchError, UnknownNameError
+from fetch.teleop.devices import DEVICES, Command, Device
+
+FORMATS = ("hdf5", "npz")
+RENDER_CHOICES = ("auto", "human", "rgb_array", "none")
+
+
+@dataclasses.dataclass(frozen=True)
+class CollectConfig:
+    """A collection session's settings (the `gym-fetch collect` flags)."""
+
+    env_id: str
+    out: str = "demos"
+    episodes: int = 0
+    """Demos to save in this session; 0: until quit."""
+    max_steps: int = 500
+    """Steps per attempt; replaces the env's 50-step TimeLimit."""
+    seed: int = 0
+    """Attempt k of the dataset resets with seed + k."""
+    control_hz: float | None = None
+    """[Hz] None: the env's real-time rate (25) for a person, as fast as possible for expert/scripted."""
+    success_hold_steps: int = 10
+    stop_on_success: bool = True
+    ignore_env_done: bool = False
+    """Keep going after `terminated` (never after the --max-steps truncation)."""
+    keep_failures: bool = False
+    device: str = "gamepad"
+    render: str = "auto"
+    format: str = "hdf5"
+    reward_type: str = "sparse"
+    cameras: tuple[str, ...] = ()
+    image_size: int = 84
+    verbose: bool = False
+
+    def __post_init__(self) -> None:
+        if self.env_id not in fetch.ENV_IDS:
+            raise UnknownNameError("env", self.env_id, fetch.ENV_IDS)
+        if self.device not in DEVICES:
+            raise UnknownNameError("device", self.device, DEVICES)
+        if self.format not in FORMATS:
+            raise UnknownNameError("format", self.format, FORMATS)
+        if self.render not in RENDER_CHOICES:
+            raise UnknownNameError("render mode", self.render, RENDER_CHOICES)
+        for name, value, low in (("--episodes", self.episodes, 0), ("--max-steps", self.max_steps, 1),
+                                 ("--success-hold-steps", self.success_hold_steps, 1),
+                                 ("--image-size", self.image_size, 1)):
+            if value < low:
+                raise FetchError(f"{name} must be at least {low}, got {value}")
+        if self.control_hz is not None and not (self.control_hz >= 0 and math.isfinite(self.control_hz)):
+            raise FetchError(f"--control-hz must be a rate in Hz >= 0 (0: as fast as possible), got {self.control_hz}")
+        if self.cameras and self.format != "hdf5":
+            raise FetchError("--cameras needs --format hdf5 (the seed's npz files hold no images)")
+
+    @property
+    def human(self) -> bool:
+        return self.device in ("gamepad", "keyboard")
+
+    def rate(self, env_dt: float) -> float:
+        """[Hz] the control rate to keep; 0 means as fast as possible."""
+        if self.control_hz is not None:
+            return self.control_hz
+        return 1.0 / env_dt if self.human or self.render == "human" else 0.0
+
+    def settings(self) -> dict[str, Any]:
+        """What a resumed session must match."""
+        return {"max_steps": self.max_steps, "success_hold_steps": self.success_hold_steps,
+                "stop_on_success": self.stop_on_success, "ignore_env_done": self.ignore_env_done}
+
+
+@dataclasses.dataclass
+class HudState:
+    """What the heads-up display shows."""
+
+    env_id: str
+    attempt: int
+    saved: int
+    target: int
+    step: int
+    max_steps: int
+    success: bool
+    held: int
+    hold_needed: int
+    gripper_closed: bool
+    status: str = ""
+
+
+class Display(Protocol):
+    """A window that shows the scene and the HUD once per tick (the viewer; None when headless)."""
+
+    def show(self, hud: HudState) -> None: ...
+
+    def close(self) -> None: ...
+
+
+@dataclasses.dataclass
+class Attempt:
+    """How one attempt went."""
+
+    number: int
+    seed: int
+    steps: int
+    success: bool
+    ended_by: str  # "success", "finish", "discard", "time limit", "terminated", "quit"
+    saved_as: str | None
+    achieved_hz: float
+
+
+@dataclasses.dataclass
+class SessionSummary:
+    attempts: list[Attempt]
+    saved: int
+    total_saved: int
+    out: str
+    achieved_hz: float
+    late_ticks: int
+    error: str | None = None
+
+    @property
+    def success_rate(self) -> float:
+        return sum(a.success for a in self.attempts) / len(self.attempts) if self.attempts else 0.0
+
+    def describe(self) -> str:
+        n = len(self.attempts)
+        rate = f"{self.achieved_hz:.1f} Hz" if self.achieved_hz else "n/a"
+        text = (f"{n} attempts, {self.saved} saved this session ({self.total_saved} in {self.out}), "
+                f"success rate {100 * self.success_rate:.0f}%, achieved control rate {rate}")
+        return text + (f"\nerror: {self.error}" if self.error else "")
+
+
+def package_versions() -> dict[str, str]:
+    import h5py
+    import mujoco
+
+    return {"fetch": fetch.__version__, "mujoco": mujoco.__version__, "gymnasium": gym.__version__,
+            "numpy": np.__version__, "h5py": h5py.__version__,
+            "gymnasium_robotics": importlib.metadata.version("gymnasium-robotics"),
+            "python": sys.version.split()[0]}
+
+
+def make_env(config: CollectConfig) -> gym.Env:
+    """The env of a session: its TimeLimit is --max-steps."""
+    return gym.make(config.env_id, max_episode_steps=config.max_steps, reward_type=config.reward_type)
+
+
+def observation_layout(env: gym.Env, config: CollectConfig) -> schema.Layout:
+    space = env.observation_space
+    sizes = tuple((key, int(space[key].shape[0])) for key in schema.OBS_KEYS)  # type: ignore[index]
+    return schema.Layout(obs_sizes=sizes, state_size=env.unwrapped.state_size,  # type: ignore[attr-defined]
+                         cameras=config.cameras, image_size=config.image_size if config.cameras else 0)
+
+
+def open_writer(config: CollectConfig, env: gym.Env, on_saved: Callable[[str, Demo], None]) -> BackgroundWriter:
+    """The writer for `config.out`: resumes what is there (if it matches) and locks it."""
+    base: Any = env.unwrapped
+    if config.format == "npz":
+        from fetch.dataset.npz import NpzWriter
+
+        metadata = {"env_id": config.env_id, "max_steps": config.max_steps, "device": config.device,
+                    "action_space": str(env.action_space), "observation_space": str(env.observation_space),
+                    "argv": sys.argv, "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+        return NpzWriter(config.out, config.env_id, metadata, on_saved)
+    header = Header(env_id=config.env_id, env_kwargs={"reward_type": config.reward_type},
+                    layout=observation_layout(env, config), settings=config.settings(),
+                    model_xml=base.model_xml(), model_hash=base.model_hash(), versions=package_versions())
+    return DatasetWriter(config.out, header, on_saved)
+
+
+class Clock:
+    """Ticks on absolute deadlines (no drift); counts the ticks that started late."""
+
+    def __init__(self, hz: float) -> None:
+        self.period = 1.0 / hz if hz > 0 else 0.0
+        self.next = time.perf_counter()
+        self.late = 0
+
+    def restart(self) -> None:
+        self.next = time.perf_counter()
+
+    def wait(self) -> None:
+        if not self.period:
+            return
+        now = time.perf_counter()
+        if now < self.next:
+            time.sleep(self.next - now)
+            self.next += self.period
+        else:
+            if now - self.next > self.period:  # a whole period lost: start again rather than rush
+                self.late += 1
+                self.next = now
+            self.next += self.period
+
+
+class Session:
+    """Runs attempts with one device until the target is reached or the operator quits."""
+
+    def __init__(self, config: CollectConfig, device: Device, env: gym.Env | None = None,
+                 display: Display | None = None, log: Callable[[str], None] | None = None,
+                 images: Callable[[], dict[str, np.ndarray]] | None = None) -> None:
+        self.config = config
+        self.env = env if env is not None else make_env(config)
+        self.base = cast(Any, self.env.unwrapped)  # a FetchEnv
+        self.device = device
+        self.display = display
+        self.log = log or (lambda text: print(text, flush=True))
+        self.images = images
+        self.saved_this_session = 0
+        self.writer = open_writer(config, self.env, self._on_saved)
+        if getattr(self.writer, "recovered", 0):
+            self.log(f"recovered {self.writer.recovered} demo(s) written just before an interruption")
+        self.buffer = EpisodeBuffer(observation_layout(self.env, config), capacity=min(config.max_steps, 1024))
+        self.clock = Clock(config.rate(self.base.dt))
+        self.attempts: list[Attempt] = []
+        self._gripper_closed = False
+
+    def _on_saved(self, name: str, demo: Demo) -> None:
+        self.log(f"saved {name}: {demo.num_samples} steps, seed {demo.attrs['seed']}"
+                 f"{'' if demo.success else ' (failed, kept)'}")
+
+    def run(self) -> SessionSummary:
+        error = None
+        try:
+            while not self.config.episodes or self.saved_this_session < self.config.episodes:
+                attempt = self.attempt()
+                self.attempts.append(attempt)
+                if self.config.verbose or attempt.saved_as is None:
+                    self.log(f"attempt {attempt.number} (seed {attempt.seed}): {attempt.steps} steps, ended by "
+                             f"{attempt.ended_by}" + ("" if attempt.saved_as else ", not saved"))
+                if attempt.ended_by == "quit":
+                    break
+        except KeyboardInterrupt:
+            self.log("interrupted: finishing the saves")
+        except FetchError as e:  # the writer failed: stop collecting, keep what is saved
+            error = str(e)
+        finally:
+            try:
+                self.writer.close()
+            except FetchError as e:
+                error = error or str(e)
+            self.device.close()
+            if self.display is not None:
+                self.display.close()
+        rates = [a.achieved_hz for a in self.attempts if a.achieved_hz > 0]
+        return SessionSummary(self.attempts, self.saved_this_session, self.writer.saved, self.config.out,
+                              float(np.mean(rates)) if rates else 0.0, self.clock.late, error)
+
+    def attempt(self) -> Attempt:
+        """One episode from one reset, recorded; saved if it held success (or --keep-failures)."""
+        cfg, env, buf = self.config, self.env, self.buffer
+        number = self.writer.reserve_attempt()
+        seed = cfg.seed + number
+        obs, info = env.reset(seed=seed)
+        self.device.reset()
+        images = self.images() if self.images else None
+        buf.begin(obs, self.base.get_state(), images)
+        started = time.time()
+        held = 0
+        success = False
+        ended_by = "time limit"
+        self.clock.restart()
+        command = Command(np.zeros(4, np.float32))
+        while True:
+            self._show(number, buf.length, info, held, command)
+            self.clock.wait()
+            command = self.device.poll(obs)
+            if command.quit:
+                ended_by = "quit"
+                break
+            if command.discard:
+                ended_by = "discard"
+                break
+            if command.paused:
+                continue
+            action = np.clip(np.asarray(command.action, dtype=np.float32), -1.0, 1.0)
+            self._gripper_closed = bool(action[3] < 0)
+            now = time.time()
+            obs, reward, terminated, truncated, info = env.step(action)
+            self.base.get_state(out=buf.state_row())
+            ok = info["is_success"] >= 1.0
+            images = self.images() if self.images else None
+            buf.record(action, obs, float(reward), terminated, truncated, ok, now, images)
+            held = held + 1 if ok else 0
+            success = success or held >= cfg.success_hold_steps
+            if success and cfg.stop_on_success:
+                ended_by = "success"
+                break
+            if command.finish:
+                ended_by = "finish"
+                break
+            if truncated:
+                break
+            if terminated and not cfg.ignore_env_done:
+                ended_by = "terminated"
+                break
+        t = buf.length
+        stamps = buf.timestamps[:t]
+        achieved = (t - 1) / (stamps[-1] - stamps[0]) if t > 1 and stamps[-1] > stamps[0] else 0.0
+        saved_as = None
+        if ended_by != "discard" and (success or cfg.keep_failures) and t > 0:
+            demo = buf.demo({"seed": seed, "success": success, "env_id": cfg.env_id, "device": self.device.name,
+                             "attempt": number, "control_hz": self.clock.period and 1.0 / self.clock.period,
+                             "achieved_hz": achieved, "started": started, "ended": time.time()})
+            saved_as = self.writer.commit(demo)
+            self.saved_this_session += 1
+        return Attempt(number, seed, t, success, ended_by, saved_as, achieved)
+
+    def _show(self, number: int, step: int, info: dict[str, Any], held: int, command: Command) -> None:
+        if self.display is None:
+            return
+        self.display.show(HudState(
+            env_id=self.config.env_id, attempt=number, saved=self.writer.saved, target=self.config.episodes,
+            step=step, max_steps=self.config.max_steps, success=info.get("is_success", 0.0) >= 1.0, held=held,
+            hold_needed=self.config.success_hold_steps, gripper_closed=self._gripper_closed,
+            status=command.status))
