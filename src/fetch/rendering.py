@@ -25,7 +25,7 @@ def _scene_option(hide_goal: bool) -> mujoco.MjvOption:
 class OffscreenRenderer:
     """Renders the env's data from a named camera into an array, without a display."""
 
-    def __init__(self, model: mujoco.MjModel, width: int, height: int) -> None:
+    def __init__(self, model: mujoco.MjModel, width: int, height: int, simple: bool = False) -> None:
         # The offscreen buffer must hold the image; this model is the env's own copy.
         model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
         model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
@@ -38,6 +38,8 @@ class OffscreenRenderer:
                 "(or osmesa, after apt-get install libosmesa6)") from exc
         self._options = {hide: _scene_option(hide) for hide in (False, True)}
         self._depth = False
+        # Reflections and the skybox cost a third of a software-rendered frame (llvmpipe).
+        self._off = (mujoco.mjtRndFlag.mjRND_REFLECTION, mujoco.mjtRndFlag.mjRND_SKYBOX) if simple else ()
 
     def render(self, data: mujoco.MjData, camera: str, depth: bool = False,
                hide_goal: bool = False) -> np.ndarray:
@@ -49,6 +51,8 @@ class OffscreenRenderer:
                 self._renderer.disable_depth_rendering()
             self._depth = depth
         self._renderer.update_scene(data, camera=camera, scene_option=self._options[hide_goal])
+        for flag in self._off:
+            self._renderer.scene.flags[flag] = False
         return self._renderer.render()
 
     def close(self) -> None:

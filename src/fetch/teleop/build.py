@@ -30,21 +30,38 @@ def wants_window(config: CollectConfig) -> bool:
         and config.human
 
 
-def make_device(config: CollectConfig, args: argparse.Namespace, env: Any, window: Any) -> Device:
+def make_device(config: CollectConfig, args: argparse.Namespace, env: Any, viewer: Any) -> Device:
     if config.device == "expert":
         return ExpertDevice(env)
     if config.device == "scripted":
         return ScriptedDevice(load_script(args.scripted_json) if args.scripted_json else default_script())
-    raise FetchError(f"--device {config.device} is not available in this version; use --device expert or scripted")
+    yaw = viewer.yaw if viewer is not None and getattr(args, "frame", "camera") == "camera" else None
+    if config.device == "keyboard":
+        if viewer is None:
+            raise FetchError("--device keyboard reads keys in the viewer window; use --render human "
+                             "(or auto, with a display)")
+        from fetch.teleop.keyboard import KeyboardDevice
+
+        return KeyboardDevice(viewer, yaw)
+    from fetch.teleop.gamepad import gamepad_from_args
+
+    return gamepad_from_args(args, yaw=yaw)
 
 
-def session_from_args(args: argparse.Namespace) -> Session | None:
+def session_from_args(args: argparse.Namespace) -> Session:
     config = config_from_args(args)
     env = make_env(config)
-    window: Display | None = None
+    viewer: Display | None = None
     if wants_window(config):
-        raise FetchError("the viewer window is not available in this version; use --render none")
-    device = make_device(config, args, env, window)
+        from fetch.teleop.viewer import Viewer
+
+        viewer = Viewer(env, config.device)
+    try:
+        device = make_device(config, args, env, viewer)
+    except BaseException:
+        if viewer is not None:
+            viewer.close()
+        raise
     print(f"collecting {config.env_id} with {config.device} into {config.out} "
           f"({'until you quit' if not config.episodes else f'{config.episodes} demos'})", file=sys.stderr)
-    return Session(config, device, env=env, display=window)
+    return Session(config, device, env=env, display=viewer)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
@@ -21,7 +22,8 @@ class Command:
     """One tick's input: the 4-D action in [-1, 1] and the episode events.
 
     `discard` ends the attempt and drops it; `finish` ends it and keeps it if it succeeded;
-    `quit` ends the session; `paused` (e.g. a pad unplugged) holds the arm without stepping.
+    `quit` ends the session; `paused` (e.g. a pad unplugged) holds the arm without stepping;
+    `switch_camera` asks the viewer for the next camera; `precision` says slow mode is on (HUD).
     """
 
     action: np.ndarray
@@ -29,12 +31,20 @@ class Command:
     finish: bool = False
     quit: bool = False
     paused: bool = False
+    switch_camera: bool = False
+    precision: bool = False
     status: str = ""
     """A short line for the HUD (e.g. "precision", "pad disconnected")."""
 
 
 def idle() -> np.ndarray:
     return np.zeros(4, np.float32)
+
+
+def rotate(x: float, y: float, yaw: float) -> tuple[float, float]:
+    """(x, y) turned by `yaw` [rad] counter-clockwise: input in the viewer's frame to the world's."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return c * x - s * y, s * x + c * y
 
 
 class Device(Protocol):

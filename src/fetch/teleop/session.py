@@ -100,13 +100,17 @@ class HudState:
     held: int
     hold_needed: int
     gripper_closed: bool
+    precision: bool = False
     status: str = ""
 
 
 class Display(Protocol):
     """A window that shows the scene and the HUD once per tick (the viewer; None when headless)."""
 
-    def show(self, hud: HudState) -> None: ...
+    def show(self, hud: HudState, deadline: float = math.inf) -> None:
+        """Draw, if there is time before `deadline` [s, perf_counter], the next control tick."""
+
+    def next_camera(self) -> None: ...
 
     def close(self) -> None: ...
 
@@ -195,18 +199,19 @@ class Clock:
     def restart(self) -> None:
         self.next = time.perf_counter()
 
-    def wait(self) -> None:
+    def wait(self) -> float:
+        """Sleep until the next deadline; returns the deadline [s, perf_counter]."""
         if not self.period:
-            return
+            return time.perf_counter()
         now = time.perf_counter()
-        if now < self.next:
-            time.sleep(self.next - now)
-            self.next += self.period
-        else:
-            if now - self.next > self.period:  # a whole period lost: start again rather than rush
-                self.late += 1
-                self.next = now
-            self.next += self.period
+        if now - self.next > self.period:  # a whole period lost: start again rather than rush
+            self.late += 1
+            self.next = now
+        deadline = self.next
+        if now < deadline:
+            time.sleep(deadline - now)
+        self.next = deadline + self.period
+        return deadline
 
 
 class Session:
@@ -230,6 +235,8 @@ class Session:
         self.clock = Clock(config.rate(self.base.dt))
         self.attempts: list[Attempt] = []
         self._gripper_closed = False
+        self.ticks: list[tuple[float, float, float]] = []
+        """Per step: its deadline, when the device was polled, when the step returned [s, perf_counter]."""
 
     def _on_saved(self, name: str, demo: Demo) -> None:
         self.log(f"saved {name}: {demo.num_samples} steps, seed {demo.attrs['seed']}"
@@ -279,8 +286,11 @@ class Session:
         command = Command(np.zeros(4, np.float32))
         while True:
             self._show(number, buf.length, info, held, command)
-            self.clock.wait()
+            deadline = self.clock.wait()
+            polled = time.perf_counter()
             command = self.device.poll(obs)
+            if command.switch_camera and self.display is not None:
+                self.display.next_camera()
             if command.quit:
                 ended_by = "quit"
                 break
@@ -293,6 +303,7 @@ class Session:
             self._gripper_closed = bool(action[3] < 0)
             now = time.time()
             obs, reward, terminated, truncated, info = env.step(action)
+            self.ticks.append((deadline, polled, time.perf_counter()))
             self.base.get_state(out=buf.state_row())
             ok = info["is_success"] >= 1.0
             images = self.images() if self.images else None
@@ -325,8 +336,9 @@ class Session:
     def _show(self, number: int, step: int, info: dict[str, Any], held: int, command: Command) -> None:
         if self.display is None:
             return
+        deadline = self.clock.next if self.clock.period else math.inf
         self.display.show(HudState(
             env_id=self.config.env_id, attempt=number, saved=self.writer.saved, target=self.config.episodes,
             step=step, max_steps=self.config.max_steps, success=info.get("is_success", 0.0) >= 1.0, held=held,
             hold_needed=self.config.success_hold_steps, gripper_closed=self._gripper_closed,
-            status=command.status))
+            precision=command.precision, status=command.status), deadline)
