@@ -325,7 +325,9 @@ class Session:
         stamps = buf.timestamps[:t]
         achieved = (t - 1) / (stamps[-1] - stamps[0]) if t > 1 and stamps[-1] > stamps[0] else 0.0
         saved_as = None
-        if ended_by != "discard" and (success or cfg.keep_failures) and t > 0:
+        # Quitting mid-attempt keeps it only if it had already succeeded (no partial failures).
+        keep = success or (cfg.keep_failures and ended_by != "quit")
+        if ended_by != "discard" and keep and t > 0:
             demo = buf.demo({"seed": seed, "success": success, "env_id": cfg.env_id, "device": self.device.name,
                              "attempt": number, "control_hz": self.clock.period and 1.0 / self.clock.period,
                              "achieved_hz": achieved, "started": started, "ended": time.time()})

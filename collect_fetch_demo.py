@@ -1,0 +1,12 @@
+#!/usr/bin/env python
+"""The seed's demonstration collector, kept for its users: every flag of the original script, with
+its meaning, runs `gym-fetch collect` (see `gym-fetch collect --help`)."""
+
+from __future__ import annotations
+
+import sys
+
+from fetch.cli import main
+
+if __name__ == "__main__":
+    raise SystemExit(main(["collect", *sys.argv[1:]]))
