@@ -58,7 +58,30 @@ def layout_tables() -> str:
     return "\n".join(out).rstrip() + "\n"
 
 
-BLOCKS = {"tasks": task_table, "layouts": layout_tables}
+def dataset_table() -> str:
+    """The dataset layout (schema.py), with PickPlace-v2's sizes as the example."""
+    from fetch.dataset import schema
+
+    layout = schema.Layout(obs_sizes=(("observation", 25), ("achieved_goal", 3), ("desired_goal", 3)),
+                           state_size=0)
+    rows = ["| key | dtype | shape | content |", "|---|---|---|---|"]
+    for key, doc in schema.DATA_ATTRS:
+        rows.append(f"| `data.attrs['{key}']` | | | {doc} |")
+    for key, doc in schema.DEMO_ATTRS:
+        rows.append(f"| `data/demo_<i>.attrs['{key}']` | | | {doc} |")
+    for field in layout.fields():
+        tail = ", ".join(["D" if field.path == "states" else str(n) for n in field.tail] or [])
+        rows_ = "T+1" if field.extra_rows else "T"
+        shape = f"({rows_}{', ' + tail if tail else ''})"
+        rows.append(f"| `data/demo_<i>/{field.path}` | {field.dtype} | {shape} | {field.doc} |")
+    rows.append("| `data/demo_<i>/obs/<camera>_image`, `next_obs/...` | uint8 | (T, H, W, 3) | "
+                "with `--cameras`: the camera's image before / after step t |")
+    rows.append("| `mask/train`, `mask/valid`, `mask/failed` | bytes | (n,) | demo names: a 90/10 split of the "
+                "successful demos (every 10th is valid); kept failures |")
+    return "\n".join(rows)
+
+
+BLOCKS = {"tasks": task_table, "layouts": layout_tables, "dataset": dataset_table}
 """README blocks between `<!-- NAME:begin -->` and `<!-- NAME:end -->` markers."""
 
 
