@@ -147,6 +147,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--fps", type=float, default=25.0, help="video frame rate (25: real time)")
     r.add_argument("--verbose", action="store_true", help="a line per demo, exact or not")
     r.set_defaults(run=run_replay)
+    from fetch.teleop.gamepad import add_gamepad_parser  # pygame is imported only when it runs
+
+    add_gamepad_parser(sub)
     return p
 
 
