@@ -8,8 +8,8 @@ from collections.abc import Iterator, Mapping
 import numpy as np
 import pygame
 import pytest
-import vpad  # tests/vpad.py
 
+import vpad  # tests/vpad.py
 from fetch.dataset import open_dataset, validate
 from fetch.teleop.devices import Command
 from fetch.teleop.gamepad import GamepadConfig, GamepadDevice
