@@ -96,15 +96,6 @@ def run_replay(args: argparse.Namespace) -> int:
     from fetch.dataset import open_dataset
     from fetch.dataset.replay import check_demo, make_replay_env
 
-    if args.video:
-        from fetch.dataset.video import render_video
-
-        with open_dataset(args.file) as ds:
-            names = ds.select(args.demo)
-            render_video(ds, names, args.video, camera=args.camera, size=args.size, fps=args.fps)
-        print(f"wrote {args.video}")
-        if not args.check:
-            return 0
     failures = 0
     largest: tuple[float, str] = (0.0, "")
     with open_dataset(args.file) as ds:
@@ -137,14 +128,10 @@ def _parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="summarise and validate a dataset; non-zero exit if it is inconsistent")
     i.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
     i.set_defaults(run=run_info)
-    r = sub.add_parser("replay", help="re-simulate demos and compare (--check), or render them (--video)")
+    r = sub.add_parser("replay", help="re-simulate demos and compare them with what was recorded")
     r.add_argument("file")
     r.add_argument("--demo", default=None, help="a demo index or name (default: all)")
-    r.add_argument("--check", action="store_true", help="compare observations and states bit for bit")
-    r.add_argument("--video", default=None, help="write an .mp4 or .gif of the demo(s) from their states")
-    r.add_argument("--camera", default="front")
-    r.add_argument("--size", type=int, default=480, help="video frame size [px] (square)")
-    r.add_argument("--fps", type=float, default=25.0, help="video frame rate (25: real time)")
+    r.add_argument("--check", action="store_true", help="compare observations and states bit for bit (the default)")
     r.add_argument("--verbose", action="store_true", help="a line per demo, exact or not")
     r.set_defaults(run=run_replay)
     from fetch.teleop.gamepad import add_gamepad_parser  # pygame is imported only when it runs
@@ -157,8 +144,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     from fetch.errors import FetchError
 
     args = _parser().parse_args(argv)
-    if args.command == "replay" and not args.video:
-        args.check = True
     try:
         return int(args.run(args))
     except FetchError as e:
