@@ -299,3 +299,27 @@ def test_python_m_entry_points(tmp_path: pathlib.Path) -> None:
         assert "saved demo_0" in run.stdout
     assert fetch.ENV_IDS  # the package is what the subprocesses imported
     assert os.path.exists(tmp_path / "fetch.cli" / "demos.hdf5")
+
+
+def test_cameras_are_recorded_as_rendered_from_the_saved_states(tmp_path: pathlib.Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    from fetch.rendering import OffscreenRenderer
+
+    assert collect(tmp_path, "--cameras", "front,wrist", "--image-size", "32", env="Reach-v2", episodes=1) == 0
+    env = gym.make("Reach-v2").unwrapped
+    renderer = OffscreenRenderer(env.model, 32, 32)  # type: ignore[attr-defined]
+    with open_dataset(tmp_path) as ds:
+        assert validate(ds) == [] and ds.layout.cameras == ("front", "wrist")
+        g = ds.demo("demo_0")
+        states = g["states"][()]
+        for camera in ("front", "wrist"):
+            frames, after = g[f"obs/{camera}_image"][()], g[f"next_obs/{camera}_image"][()]
+            assert frames.shape == (len(states) - 1, 32, 32, 3) and frames.dtype == np.uint8
+            np.testing.assert_array_equal(frames[1:], after[:-1])
+            for t in (0, len(states) - 1):
+                env.set_state(states[t])  # type: ignore[attr-defined]
+                recorded = frames[t] if t < len(frames) else after[-1]
+                np.testing.assert_array_equal(renderer.render(env.data, camera), recorded)  # type: ignore[attr-defined]
+    renderer.close()
+    assert collect(tmp_path / "other", "--cameras", "fron", env="Reach-v2", episodes=1) == 2
+    assert "unknown camera 'fron'" in capsys.readouterr().err

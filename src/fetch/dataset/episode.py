@@ -72,9 +72,15 @@ class EpisodeBuffer:
         self.length = 0
         for key, rows in self.obs.items():
             rows[0] = obs[key]
+        self._check_images(images)
         for camera, frames in self.images.items():
-            frames[0] = images[camera] if images is not None else 0
+            frames[0] = images[camera]  # type: ignore[index]
         self.states[0] = state
+
+    def _check_images(self, images: Mapping[str, np.ndarray] | None) -> None:
+        if self.images and (images is None or set(images) != set(self.images)):
+            raise ValueError(f"this buffer records cameras {sorted(self.images)}; got images of "
+                             f"{sorted(images) if images is not None else 'none'}")
 
     def state_row(self) -> np.ndarray:
         """Where the state after the next recorded step goes (for `env.get_state(out=...)`)."""
@@ -92,8 +98,9 @@ class EpisodeBuffer:
         self.actions[t] = action
         for key, rows in self.obs.items():
             rows[t + 1] = obs[key]
+        self._check_images(images)
         for camera, frames in self.images.items():
-            frames[t + 1] = images[camera] if images is not None else 0
+            frames[t + 1] = images[camera]  # type: ignore[index]
         self.rewards[t] = reward
         self.terminated[t] = terminated
         self.truncated[t] = truncated
