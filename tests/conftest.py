@@ -18,6 +18,20 @@ def env_id(request: pytest.FixtureRequest) -> str:
 
 
 @pytest.fixture
+def pad() -> Iterator[object]:
+    """An Xbox-layout virtual pad (tests/vpad.py); SDL is process-global, so pygame is shut down after."""
+    import pygame
+
+    import vpad
+
+    vpad.init_headless()
+    virtual = vpad.VirtualPad()
+    yield virtual
+    virtual.close()
+    pygame.quit()
+
+
+@pytest.fixture
 def env(env_id: str) -> Iterator[gym.Env]:
     made = gym.make(env_id)
     yield made

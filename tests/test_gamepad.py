@@ -211,16 +211,6 @@ def test_flags_override_the_profile_but_defaults_do_not(tmp_path: Path) -> None:
 
 
 @pytest.fixture
-def pad() -> Iterator[vpad.VirtualPad]:
-    """An Xbox-layout virtual pad; SDL is process-global, so pygame is shut down after each test."""
-    vpad.init_headless()
-    virtual = vpad.VirtualPad()
-    yield virtual
-    virtual.close()
-    pygame.quit()
-
-
-@pytest.fixture
 def no_pad() -> Iterator[None]:
     vpad.init_headless()
     yield

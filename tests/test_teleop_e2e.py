@@ -3,26 +3,15 @@
 from __future__ import annotations
 
 import pathlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 
 import numpy as np
-import pygame
-import pytest
 
 import vpad  # tests/vpad.py
 from fetch.dataset import open_dataset, validate
 from fetch.teleop.devices import Command
 from fetch.teleop.gamepad import GamepadConfig, GamepadDevice
 from fetch.teleop.session import CollectConfig, Session
-
-
-@pytest.fixture
-def pad() -> Iterator[vpad.VirtualPad]:
-    vpad.init_headless()
-    virtual = vpad.VirtualPad()
-    yield virtual
-    virtual.close()
-    pygame.quit()
 
 
 class Operator:
