@@ -323,3 +323,15 @@ def test_cameras_are_recorded_as_rendered_from_the_saved_states(tmp_path: pathli
     renderer.close()
     assert collect(tmp_path / "other", "--cameras", "fron", env="Reach-v2", episodes=1) == 2
     assert "unknown camera 'fron'" in capsys.readouterr().err
+
+
+def test_extra_filter_keys_are_allowed_but_each_demo_needs_one_split(copy: pathlib.Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    with h5py.File(copy / "demos.hdf5", "r+") as f:
+        f["mask/hard"] = np.array([b"demo_0", b"demo_1"])  # robomimic-style extra filter key: fine
+    assert main(["info", str(copy)]) == 0
+    with h5py.File(copy / "demos.hdf5", "r+") as f:
+        del f["mask/train"]
+        f["mask/train"] = np.array([b"demo_1", b"demo_2", b"demo_3"])  # demo_0 now only in "hard"
+    assert main(["info", str(copy)]) == 1
+    assert "demo_0 is in no mask (train, valid or failed)" in capsys.readouterr().out

@@ -244,18 +244,17 @@ def validate(ds: Dataset) -> list[str]:
         problems.append(f"data.attrs['total'] is {ds.data_attrs.get('total')}, the demos hold {total} steps")
     masks = ds.masks()
     names = set(ds.demo_names)
-    seen: dict[str, str] = {}
     for key, listed in masks.items():
-        for n in listed:
-            if n not in names:
-                problems.append(f"mask/{key} lists {n}, which is not in data")
-            if n in seen and {seen[n], key} & {"train", "valid", "failed"} == {seen[n], key}:
-                problems.append(f"{n} is in both mask/{seen[n]} and mask/{key}")
-            seen.setdefault(n, key)
-    for name in ds.demo_names:
-        if name not in seen:
-            problems.append(f"{name} is in no mask (train, valid or failed)")
-    for key in ("train", "valid", "failed"):
+        problems += [f"mask/{key} lists {n}, which is not in data" for n in listed if n not in names]
+    # Every demo is in exactly one of the three splits (other filter keys, as robomimic allows, may overlap).
+    split_of: dict[str, str] = {}
+    for key in schema.SPLITS:
+        for n in masks.get(key, []):
+            if n in split_of:
+                problems.append(f"{n} is in both mask/{split_of[n]} and mask/{key}")
+            split_of.setdefault(n, key)
+    problems += [f"{n} is in no mask (train, valid or failed)" for n in ds.demo_names if n not in split_of]
+    for key in schema.SPLITS:
         for n in masks.get(key, []):
             if n in names and n not in unreadable:
                 success = bool(ds.demo(n).attrs["success"])

@@ -18,6 +18,8 @@ EPISODES_DIR = "episodes"
 ENV_TYPE_GYM = 2
 """robomimic's `EnvType.GYM_TYPE`, the `type` in `env_args`."""
 OBS_KEYS = ("observation", "achieved_goal", "desired_goal")
+SPLITS = ("train", "valid", "failed")
+"""The masks that partition a dataset's demos: successful ones train or valid, kept failures failed."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -274,7 +274,7 @@ class DatasetWriter(BackgroundWriter):
             for name in existing.demo_names:
                 group = existing.demo(name)
                 success = bool(group.attrs["success"])
-                mask = next((k for k in ("train", "valid", "failed") if name in masks.get(k, ())),
+                mask = next((k for k in schema.SPLITS if name in masks.get(k, ())),
                             self._mask_for(success))
                 self._entries.append(_Entry(name, int(group.attrs["num_samples"]), success, mask))
             self.attempts = int(existing.data_attrs.get("attempts", 0))
@@ -348,7 +348,7 @@ class DatasetWriter(BackgroundWriter):
             target = f"{schema.EPISODES_DIR}/{e.name}.hdf5".encode()
             links.create_external(e.name.encode(), target, f"/{e.name}".encode())
         mask = f.create_group("mask")
-        for key in ("train", "valid", "failed"):
+        for key in schema.SPLITS:
             names = [e.name for e in self._entries if e.mask == key]
             mask.create_dataset(key, data=np.array(names, dtype="S"), shape=(len(names),),
                                 dtype=f"S{max((len(n) for n in names), default=1)}")
