@@ -84,6 +84,16 @@ class Dataset:
             raise DatasetError(f"{self.path}: data/{name} is not a group")
         return group
 
+    def demo_file(self, name: str) -> tuple[pathlib.Path, str]:
+        """Where demo `name` is stored: (file, group path in it). A collector's dataset keeps each
+        demo in its own file, linked from the index; a merged one keeps them in the index itself."""
+        link = self.file["data"].get(name, getlink=True)
+        if link is None:
+            self.demo(name)  # raises, naming the valid choices
+        if isinstance(link, h5py.ExternalLink):
+            return self.path.parent / link.filename, link.path
+        return self.path, f"data/{name}"
+
     def arrays(self, name: str) -> dict[str, np.ndarray]:
         """Every array of one demo, loaded, keyed by its path in the demo group."""
         out: dict[str, np.ndarray] = {}

@@ -18,9 +18,10 @@ import json
 import os
 import pathlib
 import queue
+import shutil
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import h5py
@@ -108,6 +109,71 @@ def write_demo_group(group: h5py.Group, demo: Demo) -> None:
         group.create_dataset(key, data=array, **options)
 
 
+def lock_directory(directory: pathlib.Path, alternative: str) -> Any:
+    """Hold `directory/.lock` exclusively (until `unlock_directory`); DatasetError if another
+    collector or tool holds it. `alternative` completes the message ("choose another --out")."""
+    handle = open(directory / ".lock", "a+")  # noqa: SIM115 (held until unlock_directory)
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as e:
+        handle.close()
+        raise DatasetError(f"{directory} is in use by another collector or tool (its lock file {directory}/.lock "
+                           f"is held); wait for it to finish or {alternative}") from e
+    return handle
+
+
+def unlock_directory(handle: Any) -> None:
+    with contextlib.suppress(OSError):
+        fcntl.flock(handle, fcntl.LOCK_UN)
+    handle.close()
+
+
+class Rewrites:
+    """Edits of HDF5 files that replace the originals together, when the block ends, or not at all.
+
+    `edit(path)` yields a copy opened for writing; when the `with Rewrites()` block finishes, every
+    copy is flushed and renamed over its original, in the order first edited (so edit an index
+    last); if the block raises, the copies are deleted and no original has changed.
+    """
+
+    def __init__(self) -> None:
+        self._copies: dict[pathlib.Path, pathlib.Path] = {}
+
+    @contextlib.contextmanager
+    def edit(self, path: pathlib.Path) -> Iterator[h5py.File]:
+        tmp = self._copies.get(path)
+        if tmp is None:
+            tmp = path.with_name(f".{path.name}.tmp")
+            self._copies[path] = tmp
+            shutil.copyfile(path, tmp)
+        with h5py.File(tmp, "r+") as f:
+            yield f
+
+    def __enter__(self) -> Rewrites:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
+        try:
+            if kind is None:
+                for tmp in self._copies.values():
+                    fsync_path(tmp)
+                for path, tmp in self._copies.items():
+                    os.replace(tmp, path)
+                for directory in {path.parent for path in self._copies}:
+                    fsync_path(directory)
+        finally:
+            for tmp in self._copies.values():
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+
+
+@contextlib.contextmanager
+def rewritten(path: pathlib.Path) -> Iterator[h5py.File]:
+    """Edit one HDF5 file all at once (see `Rewrites`)."""
+    with Rewrites() as rewrites, rewrites.edit(path) as f:
+        yield f
+
+
 class BackgroundWriter:
     """Saves demos from a thread, so committing never stalls the control loop; one per directory.
 
@@ -136,19 +202,10 @@ class BackgroundWriter:
         self._thread.start()
 
     def _lock(self) -> Any:
-        handle = open(self.out_dir / ".lock", "a+")  # noqa: SIM115 (held until close)
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as e:
-            handle.close()
-            raise DatasetError(f"{self.out_dir} is in use by another collector (its lock file {self.out_dir}/.lock "
-                               "is held); wait for it to finish or choose another --out") from e
-        return handle
+        return lock_directory(self.out_dir, "choose another --out")
 
     def _unlock(self) -> None:
-        with contextlib.suppress(OSError):
-            fcntl.flock(self._lock_file, fcntl.LOCK_UN)
-        self._lock_file.close()
+        unlock_directory(self._lock_file)
 
     def reserve_attempt(self) -> int:
         """The number of the attempt about to start."""
@@ -270,6 +327,11 @@ class DatasetWriter(BackgroundWriter):
             stale.unlink()
         with open_dataset(self.index_path) as existing:
             self._check_matches(existing.header_attrs())
+            inside = [n for n in existing.demo_names if existing.demo_file(n)[0] == existing.path]
+            if inside:
+                raise DatasetError(f"{self.index_path} holds its demos inside the file (a `gym-fetch merge` output, "
+                                   "not a collector's directory), so a collector cannot append to it; collect "
+                                   "into another --out and merge the two")
             masks = existing.masks()
             for name in existing.demo_names:
                 group = existing.demo(name)
