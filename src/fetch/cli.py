@@ -91,6 +91,39 @@ def run_info(args: argparse.Namespace) -> int:
 
 
 def run_replay(args: argparse.Namespace) -> int:
+    if args.video:
+        status = run_video(args)
+        if not args.check:
+            return status
+    return run_check(args)
+
+
+def run_video(args: argparse.Namespace) -> int:
+    import pathlib
+
+    from fetch._progress import progress
+    from fetch.dataset import open_dataset
+    from fetch.dataset.frames import StateRenderer
+    from fetch.dataset.video import check_video_path, write_video
+
+    out = check_video_path(args.video, args.size, args.size)
+    with open_dataset(args.file) as ds:
+        names = ds.select(args.demo)
+        with StateRenderer(ds.env_id, ds.env_kwargs, args.size, args.size) as renderer:
+            renderer.check_camera(args.camera)
+            fps = args.fps or 1.0 / renderer.env.dt
+            for name in names:
+                path = out if len(names) == 1 else out.with_name(f"{out.stem}_{name}{out.suffix}")
+                states = ds.demo(name)["states"][()]
+                frames = (renderer.frame(state, args.camera) for state in states)
+                count = write_video(path, progress(frames, len(states), f"video {name}", unit="frames"), fps,
+                                    args.size, args.size)
+                print(f"{name}: {count} frames ({len(states) - 1} steps and the final state) at {fps:g} fps, "
+                      f"camera {args.camera} -> {pathlib.Path(path)}")
+    return 0
+
+
+def run_check(args: argparse.Namespace) -> int:
     import fetch  # noqa: F401
     from fetch._progress import progress
     from fetch.dataset import open_dataset
@@ -119,6 +152,31 @@ def run_replay(args: argparse.Namespace) -> int:
     return 1 if failures else 0
 
 
+def run_render_obs(args: argparse.Namespace) -> int:
+    from fetch.dataset.render_obs import describe, render_obs
+
+    report = render_obs(args.file, args.camera, args.size, workers=args.workers, overwrite=args.overwrite)
+    print(describe(report, args.camera, args.file))
+    return 0
+
+
+def run_merge(args: argparse.Namespace) -> int:
+    from fetch.dataset.edit import merge
+
+    report = merge(args.inputs, args.out, force=args.force)
+    print(f"merged {len(args.inputs)} datasets: {report.demos} demos, {report.steps} steps -> {report.out} "
+          "(" + ", ".join(f"{k} {v}" for k, v in sorted(report.masks.items())) + ")")
+    return 0
+
+
+def run_split(args: argparse.Namespace) -> int:
+    from fetch.dataset.edit import split
+
+    sizes = split(args.file, args.valid, args.seed)
+    print(f"split {args.file}: " + ", ".join(f"{k} {v}" for k, v in sizes.items()))
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gym-fetch", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -128,12 +186,37 @@ def _parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="summarise and validate a dataset; non-zero exit if it is inconsistent")
     i.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
     i.set_defaults(run=run_info)
-    r = sub.add_parser("replay", help="re-simulate demos and compare them with what was recorded")
+    r = sub.add_parser("replay", help="re-simulate demos and compare them with what was recorded, or render "
+                                      "them to video")
     r.add_argument("file")
     r.add_argument("--demo", default=None, help="a demo index or name (default: all)")
-    r.add_argument("--check", action="store_true", help="compare observations and states bit for bit (the default)")
+    r.add_argument("--check", action="store_true",
+                   help="compare observations and states bit for bit (what replay does without --video)")
     r.add_argument("--verbose", action="store_true", help="a line per demo, exact or not")
+    r.add_argument("--video", default=None, metavar="OUT",
+                   help="render the saved states to OUT (.mp4 or .gif), one frame per state; with several demos "
+                        "one file each, named OUT_demo_<i>")
+    r.add_argument("--camera", default="front", help="the video's camera (default front)")
+    r.add_argument("--size", type=int, default=480, help="video width and height [px] (default 480)")
+    r.add_argument("--fps", type=float, default=None, help="frames per second (default: the control rate, 25)")
     r.set_defaults(run=run_replay)
+    o = sub.add_parser("render-obs", help="add a camera's images to every demo, rendered from the saved states")
+    o.add_argument("file")
+    o.add_argument("--camera", required=True, help="a camera of the env, e.g. front or wrist")
+    o.add_argument("--size", type=int, default=84, help="image width and height [px] (default 84)")
+    o.add_argument("--workers", type=int, default=None, help="render processes (default: one per core)")
+    o.add_argument("--overwrite", action="store_true", help="render a camera the dataset already has again")
+    o.set_defaults(run=run_render_obs)
+    m = sub.add_parser("merge", help="combine datasets of the same env into one self-contained file")
+    m.add_argument("inputs", nargs="+", metavar="FILE", help="datasets (files or collector directories), in order")
+    m.add_argument("--out", required=True, help="the merged file (.hdf5)")
+    m.add_argument("--force", action="store_true", help="replace --out if it exists")
+    m.set_defaults(run=run_merge)
+    s = sub.add_parser("split", help="remake mask/train and mask/valid from the successful demos")
+    s.add_argument("file")
+    s.add_argument("--valid", type=float, default=0.1, help="fraction of successful demos for validation")
+    s.add_argument("--seed", type=int, default=0, help="seed of the random assignment")
+    s.set_defaults(run=run_split)
     from fetch.teleop.gamepad import add_gamepad_parser  # pygame is imported only when it runs
 
     add_gamepad_parser(sub)

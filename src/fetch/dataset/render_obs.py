@@ -1,0 +1,151 @@
+"""`gym-fetch render-obs`: add a camera's images to every demo of a dataset, from its saved states.
+
+Worker processes (one per core) each hold the env and an offscreen renderer, restore a demo's
+states and render them; this process writes the images. Only the new arrays and the layout
+attribute change; the files are edited as copies that replace the originals once every demo is rendered, so a
+failed or interrupted run leaves the dataset as it was.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import dataclasses
+import multiprocessing
+import os
+import pathlib
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import h5py
+import numpy as np
+
+from fetch._progress import progress
+from fetch.dataset import schema
+from fetch.dataset.reader import open_dataset
+from fetch.dataset.writer import Rewrites, lock_directory, unlock_directory
+from fetch.errors import DatasetError, FetchError
+
+
+@dataclasses.dataclass(frozen=True)
+class RenderReport:
+    demos: int
+    frames: int
+    seconds: float
+    workers: int
+
+    @property
+    def frames_per_second(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else 0.0
+
+
+# -- the workers ----------------------------------------------------------------------------------
+
+_worker: dict[str, Any] = {}
+
+
+def _start_worker(dataset: str, env_id: str, env_kwargs: dict[str, Any], size: int) -> None:
+    # Software GL (llvmpipe) starts a thread per core in every process; with a process per core
+    # they would only contend, so each worker renders on one thread unless told otherwise.
+    os.environ.setdefault("LP_NUM_THREADS", "1")
+    from fetch.dataset.frames import StateRenderer
+
+    _worker["renderer"] = StateRenderer(env_id, env_kwargs, size, size)
+    _worker["file"] = h5py.File(dataset, "r")
+
+
+def _render_demo(name: str, camera: str) -> np.ndarray:
+    """Images of demo `name`'s T+1 states: obs are rows 0..T-1, next_obs rows 1..T."""
+    states = _worker["file"]["data"][name]["states"][()]
+    images: np.ndarray = _worker["renderer"].frames(states, camera)
+    return images
+
+
+def default_workers() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+# -- the command ----------------------------------------------------------------------------------
+
+def _store(group: h5py.Group, key: str, images: np.ndarray) -> None:
+    for prefix, rows in (("obs", images[:-1]), ("next_obs", images[1:])):
+        path = f"{prefix}/{key}"
+        if path in group:
+            del group[path]  # an earlier, interrupted run's (or --overwrite)
+        group.create_dataset(path, data=rows, compression="gzip", compression_opts=4, chunks=(1, *rows.shape[1:]))
+
+
+def _with_camera(layout: schema.Layout, camera: str, size: int) -> schema.Layout:
+    cameras = layout.cameras if camera in layout.cameras else (*layout.cameras, camera)
+    return layout.with_cameras(cameras, size)
+
+
+def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: int | None = None,
+               overwrite: bool = False) -> RenderReport:
+    """Add `obs/<camera>_image` and `next_obs/<camera>_image` (uint8, (T, size, size, 3)) to every demo."""
+    if size <= 0:
+        raise FetchError(f"--size must be positive pixels, got {size}")
+    workers = workers or default_workers()
+    if workers < 1:
+        raise FetchError(f"--workers must be at least 1, got {workers}")
+    with open_dataset(path) as ds:
+        index, env_id, env_kwargs, layout = ds.path, ds.env_id, ds.env_kwargs, ds.layout
+        names = list(ds.demo_names)
+        where = {name: ds.demo_file(name) for name in names}
+    if layout.cameras and size != layout.image_size:
+        raise FetchError(f"{index} holds {layout.image_size}-pixel images ({', '.join(layout.cameras)}); a dataset "
+                         f"has one image size, so use --size {layout.image_size}")
+    if camera in layout.cameras and not overwrite:
+        raise FetchError(f"{index} already has {schema.image_key(camera)}; pass --overwrite to render it again")
+    from fetch.dataset.frames import StateRenderer
+
+    with StateRenderer(env_id, env_kwargs, 8, 8) as probe:  # the camera's name, checked before any work
+        probe.check_camera(camera)
+
+    # A collector's directory (demos in their own files): hold its lock, so no collector appends
+    # while the files change. A merged file holds its demos itself.
+    in_directory = any(shard != index for shard, _ in where.values())
+    lock = lock_directory(index.parent, "run it when the collector has finished") if in_directory else None
+    try:
+        start = time.perf_counter()
+        frames = 0
+        key = schema.image_key(camera)
+        new_layout = schema.layout_to_json(_with_camera(layout, camera, size))
+        workers = min(workers, max(1, len(names)))
+        results = _rendered(index, env_id, env_kwargs, size, camera, names, workers)
+        with Rewrites() as rewrites:  # every file changes once all demos are rendered, or none does
+            for name, images in progress(results, len(names), f"render {camera}"):
+                shard, group = where[name]
+                with rewrites.edit(shard) as f:
+                    _store(f[group], key, images)
+                frames += len(images)
+            with rewrites.edit(index) as f:  # last: the layout names the camera once every demo has it
+                f["data"].attrs["layout"] = new_layout
+        return RenderReport(len(names), frames, time.perf_counter() - start, workers)
+    finally:
+        if lock is not None:
+            unlock_directory(lock)
+
+
+def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size: int, camera: str,
+              names: list[str], workers: int) -> Iterator[tuple[str, np.ndarray]]:
+    """(name, images) in the order of `names`, rendered by `workers` processes."""
+    context = multiprocessing.get_context("spawn")  # no GL or HDF5 state inherited by a fork
+    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
+                                                initargs=(str(index), env_id, env_kwargs, size)) as pool:
+        futures = [pool.submit(_render_demo, name, camera) for name in names]
+        try:
+            for name, future in zip(names, futures, strict=True):
+                try:
+                    yield name, future.result()
+                except concurrent.futures.process.BrokenProcessPool as e:
+                    raise DatasetError(f"a render worker died while rendering {name}: {e}") from e
+        finally:
+            for future in futures:
+                future.cancel()
+
+
+def describe(report: RenderReport, camera: str, path: str) -> str:
+    return (f"rendered {camera} for {report.demos} demo(s): {report.frames} frames in {report.seconds:.1f} s "
+            f"({report.frames_per_second:.0f} frames/s, {report.workers} worker process(es)) into {path}")
+
