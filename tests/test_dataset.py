@@ -19,6 +19,7 @@ from fetch.cli import main
 from fetch.dataset import open_dataset, validate
 from fetch.dataset.episode import EpisodeBuffer
 from fetch.dataset.schema import Layout
+from robomimic_rules import assert_robomimic_loadable
 
 ENV = "Drawer-open-v2"
 
@@ -77,27 +78,7 @@ def test_layout_is_robomimic_s(dataset: pathlib.Path) -> None:
 
 
 def test_robomimic_loader_rules(dataset: pathlib.Path) -> None:
-    """Every rule robomimic's SequenceDataset and its info script apply (robomimic itself is not
-    installed here: it needs torch)."""
-    with h5py.File(dataset / "demos.hdf5", "r", swmr=True, libver="latest") as f:  # how robomimic opens it
-        env_args = json.loads(f["data"].attrs["env_args"])
-        assert {"env_name", "type", "env_kwargs"} <= set(env_args)
-        demos = list(f["data"].keys())
-        inds = np.argsort([int(elem[5:]) for elem in demos])  # robomimic's own sort
-        demos = [demos[i] for i in inds]
-        for key in ("train", "valid"):
-            listed = [elem.decode("utf-8") for elem in np.array(f[f"mask/{key}"][:])]
-            assert set(listed) <= set(demos)
-        for ep in demos:
-            n = f[f"data/{ep}"].attrs["num_samples"]
-            assert f[f"data/{ep}/actions"].ndim == 2 and f[f"data/{ep}/actions"].shape[0] == n
-            a = f[f"data/{ep}/actions"][()]
-            assert a.min() >= -1.0 and a.max() <= 1.0
-            for k in ("observation", "achieved_goal", "desired_goal"):
-                for prefix in ("obs", "next_obs"):
-                    assert f[f"data/{ep}/{prefix}/{k}"].shape[0] == n
-            for k in ("rewards", "dones"):
-                assert f[f"data/{ep}/{k}"].shape[0] == n
+    assert_robomimic_loadable(dataset / "demos.hdf5")
 
 
 def test_reset_with_the_seed_and_the_actions_reproduces_every_observation(dataset: pathlib.Path) -> None:
