@@ -19,6 +19,26 @@ from fetch.dataset.writer import BackgroundWriter, atomic_write
 _NUMBER = re.compile(r"_ep(\d+)_")
 
 
+def file_stem(env_id: str, index: int, unix_time: float) -> str:
+    """The seed's name of its `index`-th saved demo, without `.npz`: `<env>_ep<NNNN>_<unix time [s]>`."""
+    return f"{env_id}_ep{index:04d}_{int(unix_time)}"
+
+
+def seed_metadata(base: dict[str, Any], demo: Demo, index: int, saved: float) -> dict[str, Any]:
+    """A file's `metadata_json`: the session's `base`, the demo's attributes, and the seed's per-demo keys
+    (`episode_index`, `saved_utc` from `saved` [s, Unix time], `successful`)."""
+    return {**base, **{k: _jsonable(v) for k, v in demo.attrs.items()}, "episode_index": index,
+            "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(saved)),
+            "successful": bool(demo.attrs["success"])}
+
+
+def seed_file(demo: Demo, metadata: dict[str, Any]) -> bytes:
+    """The bytes of one demo's `.npz` file (compressed, as the seed wrote it)."""
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **seed_arrays(demo, metadata))
+    return buffer.getvalue()
+
+
 def seed_arrays(demo: Demo, metadata: dict[str, Any]) -> dict[str, Any]:
     """The seed's npz keys: `action`, `reward`, `terminated`, `truncated`, `obs__<key>` (T+1 rows,
     the reset's observation first), `metadata_json`, `info_json`; plus `states` (T+1 rows)."""
@@ -57,16 +77,12 @@ class NpzWriter(BackgroundWriter):
         self._start()
 
     def demo_name(self, index: int) -> str:
-        return f"{self.env_id}_ep{index:04d}_{int(time.time())}"
+        return file_stem(self.env_id, index, time.time())
 
     def _save(self, name: str, demo: Demo) -> None:
-        metadata = {**self.metadata, **{k: _jsonable(v) for k, v in demo.attrs.items()},
-                    "episode_index": int(_NUMBER.search(name).group(1)),  # type: ignore[union-attr]
-                    "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                    "successful": bool(demo.attrs["success"])}
-        buffer = io.BytesIO()
-        np.savez_compressed(buffer, **seed_arrays(demo, metadata))
-        atomic_write(pathlib.Path(self.out_dir) / f"{name}.npz", buffer.getvalue())
+        index = int(_NUMBER.search(name).group(1))  # type: ignore[union-attr]
+        metadata = seed_metadata(self.metadata, demo, index, time.time())
+        atomic_write(pathlib.Path(self.out_dir) / f"{name}.npz", seed_file(demo, metadata))
 
 
 def _jsonable(value: Any) -> Any:

@@ -1,0 +1,266 @@
+"""Exports of a dataset: a Minari dataset (`minari.load_dataset` opens it) and the seed's per-demo npz files."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import pathlib
+import re
+import shutil
+import warnings
+from typing import Any
+
+import numpy as np
+
+from fetch.dataset import npz, schema
+from fetch.dataset.episode import Demo
+from fetch.dataset.reader import Dataset, open_dataset
+from fetch.errors import DatasetError, FetchError, UnknownNameError
+
+FORMATS = ("minari", "npz")
+SELECTIONS = ("successful", "all")
+"""`--demos` choices besides the masks a file holds (train, valid, failed, ...)."""
+MINARI_INSTALL = 'pip install "gym-fetch-v2[minari]"'
+_DATASET_ID = re.compile(r"^(?:[-_\w][-_\w/]*[-_\w]/)?[-_\w]+-v\d+$")
+"""Minari's `(namespace/)name-v<version>`; minari itself accepts a missing version, then fails on load."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Exported:
+    """What an export wrote: where, the source demos it holds (in order), and their steps."""
+
+    path: pathlib.Path
+    demos: tuple[str, ...]
+    steps: int
+
+
+def select_demos(ds: Dataset, which: str) -> dict[str, dict[str, Any]]:
+    """The demos for `--demos` (successful ones, all, or those of a mask), in the file's order, with
+    their attributes. Demos without a step are left out: a Minari episode needs at least one."""
+    masks = ds.masks()
+    if which not in SELECTIONS and which not in masks:
+        raise UnknownNameError("demo selection", which, SELECTIONS + tuple(sorted(masks)))
+    listed = set(ds.demo_names if which in SELECTIONS else masks[which])
+    chosen = {n: ds.attrs(n) for n in ds.demo_names if n in listed}
+    chosen = {n: a for n, a in chosen.items()
+              if int(a["num_samples"]) > 0 and (which != "successful" or bool(a["success"]))}
+    if not chosen:
+        raise DatasetError(f"{ds.path}: no demo to export with --demos {which} (the file holds "
+                           f"{len(ds.demo_names)} demos; try --demos all)")
+    return chosen
+
+
+def env_spec(ds: Dataset) -> Any:
+    """The Gymnasium `EnvSpec` the demos were recorded in: the registered id with the recorded
+    `env_kwargs` and the collector's step limit (`--max-steps`)."""
+    import gymnasium as gym
+
+    import fetch
+
+    try:
+        spec = gym.spec(ds.env_id)
+    except gym.error.Error as e:
+        raise UnknownNameError("env", ds.env_id, fetch.ENV_IDS) from e
+    limit = ds.settings.get("max_steps", spec.max_episode_steps)
+    return dataclasses.replace(spec, kwargs={**spec.kwargs, **ds.env_kwargs},
+                               max_episode_steps=None if limit is None else int(limit))
+
+
+def default_dataset_id(env_id: str, devices: list[str]) -> str:
+    """`fetch/<task>/<device>-v0`, e.g. `fetch/drawer-open/expert-v0` (`mixed` for several devices)."""
+    task = env_id.rsplit("-v", 1)[0].lower()
+    return f"fetch/{task}/{devices[0] if len(devices) == 1 else 'mixed'}-v0"
+
+
+def _devices(demos: dict[str, dict[str, Any]]) -> list[str]:
+    return sorted({str(attrs.get("device", "unknown")) for attrs in demos.values()})
+
+
+def _import_minari() -> Any:
+    try:
+        import minari
+    except ImportError as e:
+        raise FetchError(f"--to minari needs the minari package, which cannot be imported ({e}); "
+                         f"install it with: {MINARI_INSTALL}") from e
+    return minari
+
+
+def minari_root() -> pathlib.Path:
+    """Where Minari keeps local datasets: $MINARI_DATASETS_PATH, else ~/.minari/datasets."""
+    root = os.environ.get("MINARI_DATASETS_PATH")
+    return pathlib.Path(root) if root else pathlib.Path.home() / ".minari" / "datasets"
+
+
+def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None, *, demos: str = "successful",
+                  force: bool = False, author: str | None = None, author_email: str | None = None,
+                  code_permalink: str | None = None, description: str | None = None) -> Exported:
+    """Write the selected demos as the local Minari dataset `dataset_id` (under `minari_root()`).
+
+    Each episode holds T+1 observations for T actions (`obs` then the last `next_obs`), its reset
+    seed, and `infos["is_success"]` (T+1 rows: the reset's, then each step's). Its last step is
+    marked truncated unless the env terminated it, as Minari's own collector does. The env spec
+    (and the eval env spec) re-create the env the demos were recorded in. An existing dataset
+    of the same id is an error unless `force`; a failed export leaves no dataset behind.
+    """
+    minari = _import_minari()
+    import gymnasium as gym
+    from minari.data_collector import EpisodeBuffer
+
+    import fetch
+    from fetch._progress import progress
+
+    with open_dataset(ds_path) as ds:
+        chosen = select_demos(ds, demos)
+        names = list(chosen)
+        devices = _devices(chosen)
+        dataset_id = dataset_id or default_dataset_id(ds.env_id, devices)
+        if not _DATASET_ID.match(dataset_id):
+            raise FetchError(f"bad Minari dataset id {dataset_id!r}: it must read (namespace/)name-v<version> "
+                             "with letters, digits, '-' and '_', e.g. fetch/drawer-open/expert-v0")
+        target = minari_root() / dataset_id
+        if target.exists():
+            if not force:
+                raise DatasetError(f"a Minari dataset {dataset_id!r} already exists at {target}; choose another id "
+                                   "(e.g. the next version, -v1) or pass --force to replace it")
+            shutil.rmtree(target)
+        spec = env_spec(ds)
+        env = gym.make(spec)
+        steps = 0
+        try:
+            observation_space = _observation_space(env.observation_space, ds.layout)
+            text = description or (f"{len(names)} {ds.env_id} demonstrations ({', '.join(devices)}) recorded with "
+                                   f"gym-fetch-v2 and exported from {ds.path.name}; infos hold is_success.")
+            with warnings.catch_warnings():
+                # Minari asks for each metadata field it was not given; leaving one out is a choice here.
+                warnings.filterwarnings("ignore", message=r"`\w+` is set to None", category=UserWarning)
+                try:
+                    dataset = minari.create_dataset_from_buffers(
+                        dataset_id, [], env=env, eval_env=spec, algorithm_name=", ".join(devices), author=author,
+                        author_email=author_email, code_permalink=code_permalink, description=text,
+                        action_space=env.action_space, observation_space=observation_space, data_format="hdf5",
+                        requirements=[f"gym-fetch-v2>={fetch.__version__}"], jpeg_encoding=False)
+                    # One episode at a time: the whole dataset never sits in memory (images would not fit).
+                    for name in progress(names, len(names), "export"):
+                        episode = _episode(ds.arrays(name), chosen[name], env.unwrapped)
+                        dataset.storage.update_episodes([EpisodeBuffer(**episode)])
+                        steps += len(episode["rewards"])
+                    dataset.storage.update_episode_metadata(
+                        [{"demo": n, "success": bool(a["success"])} for n, a in chosen.items()], range(len(names)))
+                except BaseException:
+                    shutil.rmtree(target, ignore_errors=True)
+                    raise
+        finally:
+            env.close()
+    return Exported(path=target, demos=tuple(names), steps=steps)
+
+
+def _observation_space(space: Any, layout: schema.Layout) -> Any:
+    """The env's observation space plus the recorded camera images (uint8, H x W x 3)."""
+    if not layout.cameras:
+        return space
+    import gymnasium as gym
+
+    size = layout.image_size
+    images = {schema.image_key(c): gym.spaces.Box(0, 255, (size, size, 3), np.uint8) for c in layout.cameras}
+    return gym.spaces.Dict({**space.spaces, **images})
+
+
+def _episode(arrays: dict[str, np.ndarray], attrs: dict[str, Any], env: Any) -> dict[str, Any]:
+    """One demo as the fields of a `minari.EpisodeBuffer`."""
+    keys = [path[len("obs/"):] for path in arrays if path.startswith("obs/")]
+    observations = {k: np.concatenate([arrays[f"obs/{k}"], arrays[f"next_obs/{k}"][-1:]]) for k in keys}
+    # The reset's info was not recorded; it is a function of the start state, which was.
+    env.set_state(arrays["states"][0])
+    _, info = env.observe()
+    is_success = np.concatenate([[float(info["is_success"])], arrays["is_success"].astype(np.float64)])
+    terminations = arrays["terminated"].astype(bool)
+    truncations = arrays["truncated"].astype(bool)
+    truncations[-1] |= not terminations[-1]
+    return {"seed": int(attrs["seed"]), "observations": observations, "actions": arrays["actions"],
+            "rewards": arrays["rewards"], "terminations": terminations, "truncations": truncations,
+            "infos": {"is_success": is_success}}
+
+
+def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *, demos: str = "successful",
+               force: bool = False) -> Exported:
+    """Write the selected demos as the seed collector's files in `out_dir`: `<env>_ep<NNNN>_<t>.npz`,
+    numbered from 0 in the file's order, `t` the demo's end [s, Unix time], with the seed's keys.
+    A directory that already holds `.npz` files is an error unless `force` (same names are replaced)."""
+    import gymnasium as gym
+
+    import fetch  # noqa: F401  (registers the ids)
+    from fetch._progress import progress
+    from fetch.dataset.writer import atomic_write
+
+    out = pathlib.Path(out_dir)
+    with open_dataset(ds_path) as ds:
+        chosen = select_demos(ds, demos)
+        if out.is_dir() and not force:
+            present = sorted(out.glob("*.npz"))
+            if present:
+                raise DatasetError(f"{out} already holds {len(present)} .npz file(s) (e.g. {present[0].name}); "
+                                   "export into an empty directory, or pass --force to write over files of the "
+                                   "same name")
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise DatasetError(f"cannot create the output directory {out}: {e}") from e
+        env = gym.make(ds.env_id, **ds.env_kwargs)
+        base = {"env_id": ds.env_id, "max_steps": ds.settings.get("max_steps"),
+                "action_space": str(env.action_space), "observation_space": str(env.observation_space),
+                "exported_from": str(ds.path)}
+        env.close()
+        steps = 0
+        for index, name in enumerate(progress(chosen, len(chosen), "export")):
+            demo = Demo(arrays=ds.arrays(name), attrs=chosen[name])
+            ended = float(demo.attrs["ended"])
+            metadata = {**npz.seed_metadata(base, demo, index, ended), "demo": name}
+            path = out / f"{npz.file_stem(ds.env_id, index, ended)}.npz"
+            try:
+                atomic_write(path, npz.seed_file(demo, metadata))
+            except OSError as e:
+                raise DatasetError(f"cannot write {path}: {e}") from e
+            steps += demo.num_samples
+    return Exported(path=out, demos=tuple(chosen), steps=steps)
+
+
+def add_export_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """The `export` subcommand."""
+    p = sub.add_parser("export", help="write a dataset as a Minari dataset or as the seed's per-demo npz files")
+    p.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
+    p.add_argument("--to", required=True, choices=FORMATS)
+    p.add_argument("--dataset-id", default=None, metavar="ID",
+                   help="minari: (namespace/)name-v<version>, default fetch/<task>/<device>-v0; it is written "
+                        "under $MINARI_DATASETS_PATH (default ~/.minari/datasets)")
+    p.add_argument("--out", default=None, metavar="DIR", help="npz: the directory for the files")
+    p.add_argument("--demos", default="successful", metavar="WHICH",
+                   help="successful (default), all, or a mask of the file (train, valid, failed)")
+    p.add_argument("--force", action="store_true",
+                   help="replace a Minari dataset of the same id; write npz files into a directory that has some")
+    g = p.add_argument_group("minari metadata")
+    g.add_argument("--author", default=None)
+    g.add_argument("--author-email", default=None)
+    g.add_argument("--code-permalink", default=None)
+    g.add_argument("--description", default=None, help="default: what the demos are and where they came from")
+    p.set_defaults(run=run_export)
+
+
+def run_export(args: argparse.Namespace) -> int:
+    if args.to == "npz":
+        if args.out is None:
+            raise FetchError("--to npz needs --out DIR, the directory for the files")
+        if args.dataset_id is not None:
+            raise FetchError("--dataset-id is for --to minari; --to npz writes into --out DIR")
+        done = export_npz(args.file, args.out, demos=args.demos, force=args.force)
+        print(f"wrote {len(done.demos)} demo(s), {done.steps} steps, as npz files in {done.path}")
+        return 0
+    if args.out is not None:
+        raise FetchError(f"--out is for --to npz; a Minari dataset is written under $MINARI_DATASETS_PATH "
+                         f"(now {minari_root()})")
+    done = export_minari(args.file, args.dataset_id, demos=args.demos, force=args.force, author=args.author,
+                         author_email=args.author_email, code_permalink=args.code_permalink,
+                         description=args.description)
+    dataset_id = done.path.relative_to(minari_root()).as_posix()
+    print(f"wrote {len(done.demos)} demo(s), {done.steps} steps, as Minari dataset {dataset_id} in {done.path}")
+    return 0

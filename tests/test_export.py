@@ -1,0 +1,220 @@
+"""`gym-fetch export`: a Minari dataset that minari opens and that re-creates the env, and the seed's npz files."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import subprocess
+import sys
+
+import gymnasium as gym
+import minari
+import numpy as np
+import pytest
+
+from fetch.cli import main
+from fetch.dataset import open_dataset
+from fetch.dataset.export import export_minari, export_npz
+
+ENV = "Drawer-open-v2"
+MAX_STEPS = "60"
+
+
+def collect(out: pathlib.Path, *extra: str, device: str = "expert", episodes: int = 3) -> int:
+    return main(["collect", "--env", ENV, "--device", device, "--episodes", str(episodes), "--render", "none",
+                 "--max-steps", MAX_STEPS, "--out", str(out), *extra])
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    """Three expert demos, then a scripted attempt that idles until --max-steps and is kept as a failure."""
+    out = tmp_path_factory.mktemp("demos")
+    assert collect(out) == 0
+    script = out.parent / "idle.json"
+    script.write_text(json.dumps([{"action": [0, 0, 0, 0]}] * int(MAX_STEPS) + [{"quit": True}]))
+    assert collect(out, "--scripted-json", str(script), "--keep-failures", device="scripted", episodes=1) == 0
+    with open_dataset(out) as ds:
+        assert len(ds.demo_names) == 4 and ds.masks()["failed"] == ["demo_3"]
+    return out
+
+
+@pytest.fixture
+def minari_root(tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch) -> pathlib.Path:
+    root = tmp_path / "minari"
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    return root
+
+
+def recorded(dataset: pathlib.Path) -> dict[str, tuple[dict[str, np.ndarray], dict[str, object]]]:
+    with open_dataset(dataset) as ds:
+        return {n: (ds.arrays(n), ds.attrs(n)) for n in ds.demo_names}
+
+
+def test_minari_dataset_holds_the_demos_bit_for_bit(dataset: pathlib.Path, minari_root: pathlib.Path) -> None:
+    done = export_minari(dataset, "fetch/drawer-open/expert-v0")
+    assert done.path == minari_root / "fetch" / "drawer-open" / "expert-v0"  # MINARI_DATASETS_PATH honoured
+    assert done.demos == ("demo_0", "demo_1", "demo_2")  # the failed demo_3 is left out by default
+    loaded = minari.load_dataset("fetch/drawer-open/expert-v0")
+    assert "fetch/drawer-open/expert-v0" in minari.list_local_datasets()
+    demos = recorded(dataset)
+    assert loaded.total_episodes == 3
+    assert loaded.total_steps == done.steps == sum(len(demos[n][0]["actions"]) for n in done.demos)
+    meta = list(loaded.storage.get_episode_metadata(range(3)))
+    for episode, m, name in zip(loaded.iterate_episodes(), meta, done.demos, strict=True):
+        a, attrs = demos[name]
+        t = len(a["actions"])
+        assert m["seed"] == attrs["seed"] and m["demo"] == name and bool(m["success"])
+        for key in ("observation", "achieved_goal", "desired_goal"):
+            obs = episode.observations[key]
+            assert obs.shape[0] == t + 1 and obs.dtype == a[f"obs/{key}"].dtype
+            np.testing.assert_array_equal(obs[:t], a[f"obs/{key}"])
+            np.testing.assert_array_equal(obs[1:], a[f"next_obs/{key}"])
+        assert episode.actions.dtype == np.float32
+        np.testing.assert_array_equal(episode.actions, a["actions"])
+        np.testing.assert_array_equal(episode.rewards, a["rewards"])
+        np.testing.assert_array_equal(episode.terminations, a["terminated"])
+        # the collector stopped each demo once success held: the last step is a truncation, as Minari marks it
+        np.testing.assert_array_equal(episode.truncations[:-1], a["truncated"][:-1])
+        assert episode.truncations[-1] and not episode.terminations[-1]
+        success = episode.infos["is_success"]
+        assert success.shape == (t + 1,) and success[0] == 0.0  # the reset's, then each step's
+        np.testing.assert_array_equal(success[1:], a["is_success"])
+    assert loaded.storage.metadata["algorithm_name"] == "expert"
+    assert loaded.storage.metadata["jpeg_encoding"] is False
+
+
+def test_recovered_env_reproduces_the_demos(dataset: pathlib.Path, minari_root: pathlib.Path) -> None:
+    export_minari(dataset, "fetch/drawer-open/expert-v0")
+    loaded = minari.load_dataset("fetch/drawer-open/expert-v0")
+    env = loaded.recover_environment(eval_env=True)
+    assert env.spec is not None and env.spec.id == ENV and env.spec.max_episode_steps == int(MAX_STEPS)
+    assert env.spec.kwargs["reward_type"] == "sparse"
+    assert loaded.recover_environment().spec == env.spec
+    seeds = [m["seed"] for m in loaded.storage.get_episode_metadata(range(loaded.total_episodes))]
+    for episode, seed in zip(loaded.iterate_episodes(), seeds, strict=True):
+        obs, _ = env.reset(seed=seed)
+        for key, rows in episode.observations.items():
+            np.testing.assert_array_equal(obs[key], rows[0])
+        for t, action in enumerate(episode.actions):
+            obs, reward, terminated, truncated, info = env.step(action)
+            assert reward == episode.rewards[t] and info["is_success"] == episode.infos["is_success"][t + 1]
+            for key, rows in episode.observations.items():
+                np.testing.assert_array_equal(obs[key], rows[t + 1])
+    env.close()
+
+
+def test_a_fresh_process_recovers_the_env_without_importing_fetch(dataset: pathlib.Path,
+                                                                   minari_root: pathlib.Path) -> None:
+    export_minari(dataset, "fetch/drawer-open/expert-v0")
+    code = ("import sys, minari; d = minari.load_dataset('fetch/drawer-open/expert-v0'); "
+            "assert 'fetch' not in sys.modules; e = d.recover_environment(eval_env=True); "
+            "o, _ = e.reset(seed=0); print(e.spec.id, o['observation'].shape)")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split()[0] == ENV
+
+
+def test_cli_export_minari_refuses_an_existing_id_unless_forced(dataset: pathlib.Path, minari_root: pathlib.Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["export", str(dataset), "--to", "minari"]) == 0  # default id: fetch/<task>/<device>-v0
+    assert "fetch/drawer-open/expert-v0" in capsys.readouterr().out
+    assert (minari_root / "fetch/drawer-open/expert-v0/data/main_data.hdf5").exists()
+    assert main(["export", str(dataset), "--to", "minari", "--dataset-id", "fetch/drawer-open/expert-v0"]) == 2
+    err = capsys.readouterr().err
+    assert "already exists" in err and "--force" in err
+    assert minari.load_dataset("fetch/drawer-open/expert-v0").total_episodes == 3  # untouched
+    assert main(["export", str(dataset), "--to", "minari", "--dataset-id", "fetch/drawer-open/expert-v0", "--demos",
+                 "all", "--force"]) == 0
+    replaced = minari.load_dataset("fetch/drawer-open/expert-v0")
+    assert replaced.total_episodes == 4
+    assert replaced.storage.metadata["algorithm_name"] == "expert, scripted"
+    failed = replaced[3]
+    assert failed.truncations[-1] and len(failed) == int(MAX_STEPS) and not failed.infos["is_success"].any()
+
+
+def test_cli_export_bad_input_is_a_clear_error(dataset: pathlib.Path, minari_root: pathlib.Path,
+                                               tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["export", str(tmp_path / "missing.hdf5"), "--to", "minari"]) == 2
+    assert "no such file" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        main(["export", str(dataset), "--to", "parquet"])
+    assert exit_.value.code == 2 and "invalid choice: 'parquet'" in capsys.readouterr().err
+    assert main(["export", str(dataset), "--to", "minari", "--demos", "succesful"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown demo selection 'succesful'" in err and "successful, all, failed, train, valid" in err
+    assert main(["export", str(dataset), "--to", "minari", "--dataset-id", "drawer open"]) == 2
+    assert "(namespace/)name-v<version>" in capsys.readouterr().err
+    assert main(["export", str(dataset), "--to", "minari", "--dataset-id", "fetch/drawer"]) == 2  # no version
+    assert main(["export", str(dataset), "--to", "npz"]) == 2
+    assert "needs --out" in capsys.readouterr().err
+    assert main(["export", str(dataset), "--to", "minari", "--out", str(tmp_path)]) == 2
+    assert "--out is for --to npz" in capsys.readouterr().err
+    assert not any(minari_root.rglob("main_data.hdf5"))  # nothing half-written
+
+
+def test_missing_minari_names_the_extra(dataset: pathlib.Path, minari_root: pathlib.Path,
+                                        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setitem(sys.modules, "minari", None)  # `import minari` raises ImportError
+    assert main(["export", str(dataset), "--to", "minari"]) == 2
+    assert 'pip install "gym-fetch-v2[minari]"' in capsys.readouterr().err
+
+
+def test_npz_export_writes_what_the_collector_writes(dataset: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """The expert is deterministic: a `--format npz` session with the same seeds gives the same files."""
+    direct = tmp_path / "direct"
+    assert collect(direct, "--format", "npz") == 0
+    out = tmp_path / "exported"
+    assert main(["export", str(dataset), "--to", "npz", "--out", str(out)]) == 0
+    written, expected = sorted(out.glob("*.npz")), sorted(direct.glob("*.npz"))
+    stems = [f"{ENV}_ep{i:04d}" for i in range(3)]
+    assert [f.name.rsplit("_", 1)[0] for f in written] == [f.name.rsplit("_", 1)[0] for f in expected] == stems
+    demos = recorded(dataset)
+    for i, (mine, theirs) in enumerate(zip(written, expected, strict=True)):
+        a, attrs = demos[f"demo_{i}"]
+        assert mine.name == f"{ENV}_ep{i:04d}_{int(attrs['ended'])}.npz"
+        with np.load(mine) as m, np.load(theirs) as s:
+            assert set(m.files) == set(s.files)
+            for key in m.files:
+                if key != "metadata_json":
+                    assert m[key].dtype == s[key].dtype, key
+                    np.testing.assert_array_equal(m[key], s[key], err_msg=key)
+            np.testing.assert_array_equal(m["action"], a["actions"])
+            np.testing.assert_array_equal(m["obs__observation"][:-1], a["obs/observation"])
+            np.testing.assert_array_equal(m["obs__observation"][-1], a["next_obs/observation"][-1])
+            np.testing.assert_array_equal(m["states"], a["states"])
+            meta, theirs_meta = json.loads(str(m["metadata_json"])), json.loads(str(s["metadata_json"]))
+            assert set(theirs_meta) - {"argv", "created_utc"} <= set(meta)
+            assert meta["episode_index"] == i and meta["seed"] == attrs["seed"] and meta["successful"] is True
+            assert meta["demo"] == f"demo_{i}" and meta["observation_space"] == theirs_meta["observation_space"]
+
+
+def test_npz_export_refuses_a_directory_with_npz_files_unless_forced(dataset: pathlib.Path,
+                                                                    tmp_path: pathlib.Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "npz"
+    done = export_npz(dataset, out, demos="all")
+    assert len(done.demos) == 4 and len(list(out.glob("*.npz"))) == 4
+    with np.load(sorted(out.glob("*_ep0003_*.npz"))[0]) as z:
+        assert z["truncated"][-1] and not json.loads(str(z["metadata_json"]))["successful"]
+    assert main(["export", str(dataset), "--to", "npz", "--out", str(out)]) == 2
+    assert "already holds 4 .npz file(s)" in capsys.readouterr().err
+    assert main(["export", str(dataset), "--to", "npz", "--out", str(out), "--demos", "failed", "--force"]) == 0
+    with open_dataset(dataset) as ds:
+        ended = int(ds.attrs("demo_3")["ended"])
+    with np.load(out / f"{ENV}_ep0000_{ended}.npz") as z:  # numbered from 0 again; a same name is replaced
+        assert json.loads(str(z["metadata_json"]))["demo"] == "demo_3"
+
+
+def test_images_are_exported_losslessly(tmp_path: pathlib.Path, minari_root: pathlib.Path) -> None:
+    src = tmp_path / "cams"
+    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "1", "--render", "none",
+                 "--cameras", "front", "--image-size", "32", "--out", str(src)]) == 0
+    export_minari(src, "fetch/reach/cams-v0")
+    loaded = minari.load_dataset("fetch/reach/cams-v0")
+    space = loaded.observation_space
+    assert isinstance(space, gym.spaces.Dict) and space["front_image"].shape == (32, 32, 3)
+    with open_dataset(src) as ds:
+        a = ds.arrays("demo_0")
+    frames = loaded[0].observations["front_image"]
+    assert frames.dtype == np.uint8 and frames.any()
+    np.testing.assert_array_equal(frames, np.concatenate([a["obs/front_image"], a["next_obs/front_image"][-1:]]))
