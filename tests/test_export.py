@@ -218,3 +218,21 @@ def test_images_are_exported_losslessly(tmp_path: pathlib.Path, minari_root: pat
     frames = loaded[0].observations["front_image"]
     assert frames.dtype == np.uint8 and frames.any()
     np.testing.assert_array_equal(frames, np.concatenate([a["obs/front_image"], a["next_obs/front_image"][-1:]]))
+
+
+def test_a_failed_export_leaves_the_previous_dataset_as_it_was(dataset: pathlib.Path, minari_root: pathlib.Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    import fetch.dataset.export as export
+
+    export_minari(dataset, "fetch/drawer-open/expert-v0")
+    before = sorted(p.relative_to(minari_root) for p in minari_root.rglob("*"))
+
+    def broken(*args: object) -> None:
+        raise OSError("disk full")
+
+    monkeypatch.setattr(export, "_episode", broken)
+    for dataset_id in ("fetch/drawer-open/expert-v0", "fetch/drawer-open/expert-v1"):
+        with pytest.raises(OSError, match="disk full"):
+            export_minari(dataset, dataset_id, demos="all", force=True)
+    assert sorted(p.relative_to(minari_root) for p in minari_root.rglob("*")) == before
+    assert minari.load_dataset("fetch/drawer-open/expert-v0").total_episodes == 3

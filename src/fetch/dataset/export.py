@@ -89,7 +89,7 @@ def _import_minari() -> Any:
 def minari_root() -> pathlib.Path:
     """Where Minari keeps local datasets: $MINARI_DATASETS_PATH, else ~/.minari/datasets."""
     root = os.environ.get("MINARI_DATASETS_PATH")
-    return pathlib.Path(root) if root else pathlib.Path.home() / ".minari" / "datasets"
+    return pathlib.Path(root) if root is not None else pathlib.Path.home() / ".minari" / "datasets"
 
 
 def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None, *, demos: str = "successful",
@@ -105,54 +105,68 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
     """
     minari = _import_minari()
     import gymnasium as gym
-    from minari.data_collector import EpisodeBuffer
-
-    import fetch
-    from fetch._progress import progress
 
     with open_dataset(ds_path) as ds:
         chosen = select_demos(ds, demos)
-        names = list(chosen)
         devices = _devices(chosen)
         dataset_id = dataset_id or default_dataset_id(ds.env_id, devices)
         if not _DATASET_ID.match(dataset_id):
             raise FetchError(f"bad Minari dataset id {dataset_id!r}: it must read (namespace/)name-v<version> "
                              "with letters, digits, '-' and '_', e.g. fetch/drawer-open/expert-v0")
         target = minari_root() / dataset_id
-        if target.exists():
-            if not force:
-                raise DatasetError(f"a Minari dataset {dataset_id!r} already exists at {target}; choose another id "
-                                   "(e.g. the next version, -v1) or pass --force to replace it")
-            shutil.rmtree(target)
+        if target.exists() and not force:
+            raise DatasetError(f"a Minari dataset {dataset_id!r} already exists at {target}; choose another id "
+                               "(e.g. the next version, -v1) or pass --force to replace it")
         spec = env_spec(ds)
+        metadata = {"algorithm_name": ", ".join(devices), "author": author, "author_email": author_email,
+                    "code_permalink": code_permalink,
+                    "description": description or (f"{len(chosen)} {ds.env_id} demonstrations ({', '.join(devices)})"
+                                                   f" recorded with gym-fetch-v2, exported from {ds.path.name}")}
+        # A replaced dataset is set aside until the new one is complete, and put back if it fails.
+        aside = target.with_name(f".{target.name}.replaced") if target.exists() else None
         env = gym.make(spec)
-        steps = 0
         try:
-            observation_space = _observation_space(env.observation_space, ds.layout)
-            text = description or (f"{len(names)} {ds.env_id} demonstrations ({', '.join(devices)}) recorded with "
-                                   f"gym-fetch-v2 and exported from {ds.path.name}; infos hold is_success.")
-            with warnings.catch_warnings():
-                # Minari asks for each metadata field it was not given; leaving one out is a choice here.
-                warnings.filterwarnings("ignore", message=r"`\w+` is set to None", category=UserWarning)
-                try:
-                    dataset = minari.create_dataset_from_buffers(
-                        dataset_id, [], env=env, eval_env=spec, algorithm_name=", ".join(devices), author=author,
-                        author_email=author_email, code_permalink=code_permalink, description=text,
-                        action_space=env.action_space, observation_space=observation_space, data_format="hdf5",
-                        requirements=[f"gym-fetch-v2>={fetch.__version__}"], jpeg_encoding=False)
-                    # One episode at a time: the whole dataset never sits in memory (images would not fit).
-                    for name in progress(names, len(names), "export"):
-                        episode = _episode(ds.arrays(name), chosen[name], env.unwrapped)
-                        dataset.storage.update_episodes([EpisodeBuffer(**episode)])
-                        steps += len(episode["rewards"])
-                    dataset.storage.update_episode_metadata(
-                        [{"demo": n, "success": bool(a["success"])} for n, a in chosen.items()], range(len(names)))
-                except BaseException:
-                    shutil.rmtree(target, ignore_errors=True)
-                    raise
+            if aside is not None:
+                shutil.rmtree(aside, ignore_errors=True)
+                target.rename(aside)
+            try:
+                steps = _write_minari(minari, dataset_id, ds, chosen, env, spec, metadata)
+            except BaseException:
+                shutil.rmtree(target, ignore_errors=True)
+                if aside is not None:
+                    aside.rename(target)
+                raise
         finally:
             env.close()
-    return Exported(path=target, demos=tuple(names), steps=steps)
+    if aside is not None:
+        shutil.rmtree(aside, ignore_errors=True)
+    return Exported(path=target, demos=tuple(chosen), steps=steps)
+
+
+def _write_minari(minari: Any, dataset_id: str, ds: Dataset, chosen: dict[str, dict[str, Any]], env: Any, spec: Any,
+                  metadata: dict[str, Any]) -> int:
+    """Create the Minari dataset and add the demos one at a time (the whole dataset never sits in
+    memory: with images it would not fit); the steps written."""
+    import fetch
+    from fetch._progress import progress
+
+    with warnings.catch_warnings():
+        # Minari asks for each metadata field it was not given; leaving one out is a choice here.
+        warnings.filterwarnings("ignore", message=r"`\w+` is set to None", category=UserWarning)
+        dataset = minari.create_dataset_from_buffers(
+            dataset_id, [], env=env, eval_env=spec, action_space=env.action_space,
+            observation_space=_observation_space(env.observation_space, ds.layout), data_format="hdf5",
+            requirements=[f"gym-fetch-v2>={fetch.__version__}"], jpeg_encoding=False, **metadata)
+    from minari.data_collector import EpisodeBuffer
+
+    steps = 0
+    for name in progress(chosen, len(chosen), "export"):
+        episode = _episode(ds.arrays(name), chosen[name], env.unwrapped)
+        dataset.storage.update_episodes([EpisodeBuffer(**episode)])
+        steps += len(episode["rewards"])
+    dataset.storage.update_episode_metadata(
+        [{"demo": n, "success": bool(a["success"])} for n, a in chosen.items()], range(len(chosen)))
+    return steps
 
 
 def _observation_space(space: Any, layout: schema.Layout) -> Any:
