@@ -69,15 +69,17 @@ def dataset_table() -> str:
         rows.append(f"| `data.attrs['{key}']` | | | {doc} |")
     for key, doc in schema.DEMO_ATTRS:
         rows.append(f"| `data/demo_<i>.attrs['{key}']` | | | {doc} |")
+    for key, doc in schema.TOOL_ATTRS:
+        rows.append(f"| `{key}` | | | {doc} |")
     for field in layout.fields():
         tail = ", ".join(["D" if field.path == "states" else str(n) for n in field.tail] or [])
         rows_ = "T+1" if field.extra_rows else "T"
         shape = f"({rows_}{', ' + tail if tail else ''})"
         rows.append(f"| `data/demo_<i>/{field.path}` | {field.dtype} | {shape} | {field.doc} |")
     rows.append("| `data/demo_<i>/obs/<camera>_image`, `next_obs/...` | uint8 | (T, H, W, 3) | "
-                "with `--cameras`: the camera's image before / after step t |")
+                "with `--cameras` or after `render-obs`: the camera's image before / after step t |")
     rows.append("| `mask/train`, `mask/valid`, `mask/failed` | bytes | (n,) | demo names: a 90/10 split of the "
-                "successful demos (every 10th is valid); kept failures |")
+                "successful demos (every 10th is valid, or as `split` drew it); kept failures |")
     return "\n".join(rows)
 
 

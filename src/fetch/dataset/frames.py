@@ -14,6 +14,22 @@ import numpy as np
 from fetch.errors import FetchError, UnknownNameError
 
 
+def camera_names(env_id: str, env_kwargs: dict[str, Any]) -> tuple[str, ...]:
+    """The cameras of an env (its model's, in order), without a GL context."""
+    import fetch  # noqa: F401  (registers the ids)
+
+    env: Any = gym.make(env_id, **env_kwargs).unwrapped
+    try:
+        return tuple(env.model.camera(i).name for i in range(env.model.ncam))
+    finally:
+        env.close()
+
+
+def check_camera(camera: str, cameras: tuple[str, ...]) -> None:
+    if camera not in cameras:
+        raise UnknownNameError("camera", camera, cameras)
+
+
 class StateRenderer:
     """Renders states of one env (id and kwargs, as a dataset records them) offscreen."""
 
@@ -32,8 +48,7 @@ class StateRenderer:
         self._renderer = OffscreenRenderer(model, width, height)
 
     def check_camera(self, camera: str) -> None:
-        if camera not in self.cameras:
-            raise UnknownNameError("camera", camera, self.cameras)
+        check_camera(camera, self.cameras)
 
     def frame(self, state: np.ndarray, camera: str) -> np.ndarray:
         """The (H, W, 3) uint8 image of one state."""

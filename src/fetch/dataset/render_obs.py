@@ -97,10 +97,9 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
                          f"has one image size, so use --size {layout.image_size}")
     if camera in layout.cameras and not overwrite:
         raise FetchError(f"{index} already has {schema.image_key(camera)}; pass --overwrite to render it again")
-    from fetch.dataset.frames import StateRenderer
+    from fetch.dataset.frames import camera_names, check_camera
 
-    with StateRenderer(env_id, env_kwargs, 8, 8) as probe:  # the camera's name, checked before any work
-        probe.check_camera(camera)
+    check_camera(camera, camera_names(env_id, env_kwargs))  # before any work
 
     # A collector's directory (demos in their own files): hold its lock, so no collector appends
     # while the files change. A merged file holds its demos itself.

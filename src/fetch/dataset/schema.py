@@ -109,6 +109,13 @@ DATA_ATTRS: tuple[tuple[str, str], ...] = (
     ("attempts", "attempts made so far (the next attempt's number)"),
 )
 
+TOOL_ATTRS: tuple[tuple[str, str], ...] = (
+    ("data.attrs['sources']", "`merge` only: JSON list of the merged datasets (path, demos, settings, versions)"),
+    ("data.attrs['split']", "after `split`: JSON `{valid, seed}` it was made with"),
+    ("data/demo_<i>.attrs['source']", "`merge` only: `<dataset>:<demo>` the demo came from"),
+)
+"""Attributes the dataset tools add (optional: files without them are valid)."""
+
 
 def layout_to_json(layout: Layout) -> str:
     return json.dumps({"obs_sizes": [list(x) for x in layout.obs_sizes], "state_size": layout.state_size,
