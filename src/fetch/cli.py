@@ -217,8 +217,10 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--valid", type=float, default=0.1, help="fraction of successful demos for validation")
     s.add_argument("--seed", type=int, default=0, help="seed of the random assignment")
     s.set_defaults(run=run_split)
+    from fetch.dataset.export import add_export_parser  # minari is imported only when it runs
     from fetch.teleop.gamepad import add_gamepad_parser  # pygame is imported only when it runs
 
+    add_export_parser(sub)
     add_gamepad_parser(sub)
     return p
 
