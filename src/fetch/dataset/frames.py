@@ -6,6 +6,10 @@ time, from any camera, at any size, bit-identical to images rendered while it wa
 
 from __future__ import annotations
 
+import concurrent.futures
+import multiprocessing
+import os
+from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -68,6 +72,55 @@ class StateRenderer:
         self.env.close()
 
     def __enter__(self) -> StateRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+# -- rendering in worker processes ----------------------------------------------------------------
+# Each process has its own GL context and interpreter: rendering there neither holds this process's
+# GIL nor needs this thread to own a context (GLFW allows windows on the main thread only).
+
+_process_renderer: list[StateRenderer] = []
+
+
+def _start_process(env_id: str, env_kwargs: dict[str, Any], size: int, nice: int) -> None:
+    # Software GL (llvmpipe) starts a thread per core in every process; one thread each keeps
+    # parallel workers (and a collector's control loop) from contending, unless the user says otherwise.
+    os.environ.setdefault("LP_NUM_THREADS", "1")
+    if nice:
+        os.nice(nice)
+    _process_renderer.append(StateRenderer(env_id, env_kwargs, size, size))
+
+
+def _render_in_process(states: np.ndarray, cameras: Sequence[str]) -> dict[str, np.ndarray]:
+    renderer = _process_renderer[0]
+    return {camera: renderer.frames(states, camera) for camera in cameras}
+
+
+class RenderPool:
+    """`workers` processes that render states to square `size` images; `nice` lowers their priority."""
+
+    def __init__(self, env_id: str, env_kwargs: dict[str, Any], size: int, workers: int = 1, nice: int = 0) -> None:
+        self._pool = concurrent.futures.ProcessPoolExecutor(
+            workers, mp_context=multiprocessing.get_context("spawn"),  # no GL or HDF5 state inherited
+            initializer=_start_process, initargs=(env_id, env_kwargs, size, nice))
+
+    def submit(self, states: np.ndarray, cameras: Sequence[str]) -> concurrent.futures.Future[dict[str, np.ndarray]]:
+        """Images of every state, per camera ((N, size, size, 3) uint8), when the future is done."""
+        return self._pool.submit(_render_in_process, states, tuple(cameras))
+
+    def render(self, states: np.ndarray, cameras: Sequence[str]) -> dict[str, np.ndarray]:
+        try:
+            return self.submit(states, cameras).result()
+        except concurrent.futures.process.BrokenProcessPool as e:
+            raise FetchError(f"the render process died: {e}") from e
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> RenderPool:
         return self
 
     def __exit__(self, *exc: object) -> None:

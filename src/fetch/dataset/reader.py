@@ -96,15 +96,9 @@ class Dataset:
 
     def arrays(self, name: str) -> dict[str, np.ndarray]:
         """Every array of one demo, loaded, keyed by its path in the demo group."""
-        out: dict[str, np.ndarray] = {}
-        group = self.demo(name)
+        from fetch.dataset.writer import read_demo_group
 
-        def visit(path: str, node: Any) -> None:
-            if isinstance(node, h5py.Dataset):
-                out[path] = node[()]
-
-        group.visititems(visit)
-        return out
+        return read_demo_group(self.demo(name)).arrays
 
     def attrs(self, name: str) -> dict[str, Any]:
         return {k: _plain(v) for k, v in self.demo(name).attrs.items()}
@@ -232,6 +226,11 @@ def validate(ds: Dataset) -> list[str]:
 
         group.visititems(visit)
         shape_problems = schema.check_arrays(arrays, layout, t)
+        images = {f"missing {p}/{schema.image_key(c)}" for c in layout.cameras for p in ("obs", "next_obs")}
+        if shape_problems and set(shape_problems) <= images:
+            problems.append(f"{name}: its images are not rendered yet (the collector stopped first): run "
+                            "`gym-fetch collect` on this directory again, or `gym-fetch render-obs --overwrite`")
+            continue
         if shape_problems:
             problems += [f"{name}: {p}" for p in shape_problems]
             continue

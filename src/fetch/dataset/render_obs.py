@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import concurrent.futures
 import dataclasses
-import multiprocessing
 import os
 import pathlib
 import time
@@ -37,28 +36,6 @@ class RenderReport:
     @property
     def frames_per_second(self) -> float:
         return self.frames / self.seconds if self.seconds > 0 else 0.0
-
-
-# -- the workers ----------------------------------------------------------------------------------
-
-_worker: dict[str, Any] = {}
-
-
-def _start_worker(dataset: str, env_id: str, env_kwargs: dict[str, Any], size: int) -> None:
-    # Software GL (llvmpipe) starts a thread per core in every process; with a process per core
-    # they would only contend, so each worker renders on one thread unless told otherwise.
-    os.environ.setdefault("LP_NUM_THREADS", "1")
-    from fetch.dataset.frames import StateRenderer
-
-    _worker["renderer"] = StateRenderer(env_id, env_kwargs, size, size)
-    _worker["file"] = h5py.File(dataset, "r")
-
-
-def _render_demo(name: str, camera: str) -> np.ndarray:
-    """Images of demo `name`'s T+1 states: obs are rows 0..T-1, next_obs rows 1..T."""
-    states = _worker["file"]["data"][name]["states"][()]
-    images: np.ndarray = _worker["renderer"].frames(states, camera)
-    return images
 
 
 def default_workers() -> int:
@@ -129,14 +106,14 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
 def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size: int, camera: str,
               names: list[str], workers: int) -> Iterator[tuple[str, np.ndarray]]:
     """(name, images) in the order of `names`, rendered by `workers` processes."""
-    context = multiprocessing.get_context("spawn")  # no GL or HDF5 state inherited by a fork
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
-                                                initargs=(str(index), env_id, env_kwargs, size)) as pool:
-        futures = [pool.submit(_render_demo, name, camera) for name in names]
+    from fetch.dataset.frames import RenderPool
+
+    with RenderPool(env_id, env_kwargs, size, workers) as pool, open_dataset(index) as ds:
+        futures = [pool.submit(ds.demo(name)["states"][()], (camera,)) for name in names]
         try:
             for name, future in zip(names, futures, strict=True):
                 try:
-                    yield name, future.result()
+                    yield name, future.result()[camera]
                 except concurrent.futures.process.BrokenProcessPool as e:
                     raise DatasetError(f"a render worker died while rendering {name}: {e}") from e
         finally:

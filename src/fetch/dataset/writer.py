@@ -22,7 +22,7 @@ import shutil
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
@@ -30,6 +30,9 @@ import numpy as np
 from fetch.dataset import schema
 from fetch.dataset.episode import Demo
 from fetch.errors import DatasetError
+
+if TYPE_CHECKING:
+    from fetch.dataset.frames import RenderPool
 
 VALID_EVERY = 10
 """Every 10th successful demo goes to `mask/valid` (a stable 90/10 split as demos are appended)."""
@@ -174,6 +177,18 @@ def rewritten(path: pathlib.Path) -> Iterator[h5py.File]:
         yield f
 
 
+def read_demo_group(group: h5py.Group) -> Demo:
+    """A saved demo, loaded (the inverse of `write_demo_group`)."""
+    arrays: dict[str, np.ndarray] = {}
+
+    def visit(path: str, node: Any) -> None:
+        if isinstance(node, h5py.Dataset):
+            arrays[path] = node[()]
+
+    group.visititems(visit)
+    return Demo(arrays, dict(group.attrs))
+
+
 class BackgroundWriter:
     """Saves demos from a thread, so committing never stalls the control loop; one per directory.
 
@@ -195,6 +210,7 @@ class BackgroundWriter:
         self.recovered = 0
         self._next_index = 0
         self.error: BaseException | None = None
+        self._pending: list[str] = []
         self._queue: queue.Queue[tuple[str, Demo] | None] = queue.Queue()
         self._thread = threading.Thread(target=self._run, name="fetch-dataset-writer", daemon=True)
 
@@ -226,6 +242,9 @@ class BackgroundWriter:
         return name
 
     def _run(self) -> None:
+        for name in self._pending:  # saved by an earlier session that stopped before completing them
+            if self.error is None:
+                self._complete_safely(name, None)
         while True:
             item = self._queue.get()
             try:
@@ -244,8 +263,21 @@ class BackgroundWriter:
                     self.saved += 1
                     if self.on_saved is not None:
                         self.on_saved(name, demo)
+                    self._complete_safely(name, demo)
             finally:
                 self._queue.task_done()
+
+    def _complete_safely(self, name: str, demo: Demo | None) -> None:
+        try:
+            self._complete(name, demo)
+        except OSError as e:
+            self.error = DatasetError(self._describe(name, e))
+        except Exception as e:
+            self.error = e
+
+    def _complete(self, name: str, demo: Demo | None) -> None:
+        """Called after demo `name` is saved (None: it was saved by an earlier session), to add what
+        is made after the fact (a subclass's images)."""
 
     def _save(self, name: str, demo: Demo) -> None:
         raise NotImplementedError
@@ -300,6 +332,7 @@ class DatasetWriter(BackgroundWriter):
         self.episodes_dir = self.out_dir / schema.EPISODES_DIR
         self.header = header
         self._entries: list[_Entry] = []
+        self._renderer: RenderPool | None = None
         self.created = time.time()
         try:
             self.episodes_dir.mkdir(exist_ok=True)
@@ -341,6 +374,7 @@ class DatasetWriter(BackgroundWriter):
                 self._entries.append(_Entry(name, int(group.attrs["num_samples"]), success, mask))
             self.attempts = int(existing.data_attrs.get("attempts", 0))
             self.created = float(existing.data_attrs.get("created", self.created))
+            self._pending = [name for name in existing.demo_names if self._images_missing(existing.demo(name))]
         known = {e.name for e in self._entries}
         self._next_index = 1 + max((schema.demo_index(e.name) for e in self._entries), default=-1)
         # Demo files renamed into place just before a kill, while the index was being rewritten.
@@ -427,5 +461,42 @@ class DatasetWriter(BackgroundWriter):
 
     def _finish(self) -> None:
         self._write_index()  # the attempt count
+
+    # -- images -------------------------------------------------------------------------------
+    # With cameras, a demo is saved first without its images, so it is durable as soon as the
+    # attempt ends; its images are then rendered from its saved states in a separate process (off
+    # the control loop and its GIL) and the demo's file is replaced by one with them. A session
+    # stopped before that leaves demos without images; the next session on the same directory
+    # renders them first.
+
+    def _images_missing(self, group: Any) -> list[str]:
+        return [c for c in self.header.layout.cameras if f"obs/{schema.image_key(c)}" not in group]
+
+    def _complete(self, name: str, demo: Demo | None) -> None:
+        path = self.episodes_dir / f"{name}.hdf5"
+        if demo is None:
+            with h5py.File(path, "r") as f:
+                demo = read_demo_group(f[name])
+        cameras = self._images_missing(demo.arrays)
+        if not cameras:
+            return
+        if self._renderer is None:
+            from fetch.dataset.frames import RenderPool
+
+            h = self.header
+            self._renderer = RenderPool(h.env_id, h.env_kwargs, h.layout.image_size, workers=1, nice=10)
+        images = self._renderer.render(demo.arrays["states"], cameras)
+        arrays = dict(demo.arrays)
+        for camera, frames in images.items():
+            arrays[f"obs/{schema.image_key(camera)}"] = frames[:-1]
+            arrays[f"next_obs/{schema.image_key(camera)}"] = frames[1:]
+        write_demo_file(path, name, Demo(arrays, demo.attrs))
+
+    def close(self) -> None:
+        try:
+            super().close()
+        finally:
+            if self._renderer is not None:
+                self._renderer.close()
 
 
