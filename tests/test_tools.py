@@ -55,9 +55,10 @@ def everything(path: pathlib.Path) -> dict[str, object]:
     return out
 
 
-def assert_same(a: dict[str, object], b: dict[str, object], skip: str = "\0") -> None:
-    kept = [k for k in a if skip not in k]
-    assert kept and set(kept) == {k for k in b if skip not in k}
+def assert_same(a: dict[str, object], b: dict[str, object], skip: tuple[str, ...] = ()) -> None:
+    """Equal keys and values, leaving out keys that contain any of `skip`."""
+    kept = [k for k in a if not any(s in k for s in skip)]
+    assert kept and set(kept) == {k for k in b if not any(s in k for s in skip)}
     for key in kept:
         if isinstance(a[key], np.ndarray):
             np.testing.assert_array_equal(a[key], b[key], err_msg=key)  # type: ignore[arg-type]
@@ -293,3 +294,20 @@ def test_split_draws_the_valid_fraction_by_seed_and_keeps_failures_apart(tmp_pat
     assert masks()["valid"] == []
     assert main(["split", str(out), "--valid", "1"]) == 2
     assert "--valid must be a fraction in [0, 1), got 1.0" in capsys.readouterr().err
+
+
+# -- collect --cameras ----------------------------------------------------------------------------
+
+def test_images_a_stopped_session_left_unrendered_are_rendered_by_the_next(made: dict[str, pathlib.Path],
+                                                                           tmp_path: pathlib.Path,
+                                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "recorded"
+    shutil.copytree(made["recorded"], out)
+    with h5py.File(out / "episodes" / "demo_1.hdf5", "r+") as f:  # as saved before its images were made
+        del f["demo_1/obs/front_image"], f["demo_1/next_obs/front_image"]
+    assert main(["info", str(out)]) == 1
+    assert "demo_1: its images are not rendered yet" in capsys.readouterr().out
+    collect(out, "--cameras", "front", "--image-size", "32", episodes=1, seed=50)
+    with open_dataset(out) as ds:
+        assert validate(ds) == [] and ds.demo_names == ["demo_0", "demo_1", "demo_2", "demo_3"]
+    assert_same(everything(made["recorded"]), everything(out), skip=("demo_3", "data"))
