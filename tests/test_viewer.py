@@ -8,12 +8,16 @@ import pathlib
 import shutil
 import subprocess
 import sys
+import time
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
 
+from fetch.errors import FetchError
 from fetch.teleop.keyboard import KeyboardState, keyboard_command
-from fetch.teleop.viewer import camera_yaw
+from fetch.teleop.session import HudState
+from fetch.teleop.viewer import Viewer, camera_yaw
 
 SCRIPT = pathlib.Path(__file__).parent / "scripts" / "viewer_session.py"
 
@@ -68,3 +72,91 @@ def test_camera_relative_yaw_points_stick_up_away_from_the_viewer() -> None:
         cam = env.model.camera(camera).id  # type: ignore[attr-defined]
         forward = -env.data.cam_xmat[cam].reshape(3, 3)[:, 2][:2]  # type: ignore[attr-defined]
         assert up @ forward / np.linalg.norm(forward) > 0.999, camera
+
+
+HUD = HudState(env_id="PickPlace-v2", attempt=0, saved=0, target=1, step=0, max_steps=50, success=False, held=0,
+               hold_needed=10, gripper_closed=False)
+
+
+@pytest.fixture
+def make_viewer(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[], Viewer]]:
+    """Viewers on SDL's dummy video driver (no window) with this process's offscreen GL; closed after."""
+    pygame = pytest.importorskip("pygame")
+    import gymnasium as gym
+
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    made: list[Viewer] = []
+
+    def make() -> Viewer:
+        env = gym.make("PickPlace-v2")
+        env.reset(seed=0)
+        made.append(Viewer(env, "keyboard"))
+        return made[-1]
+
+    yield make
+    for viewer in made:
+        viewer.close()
+    pygame.quit()
+
+
+def show_until(viewer: Viewer, done: Callable[[], bool], timeout: float = 30.0) -> list[float]:
+    """Call `show` once per 10 ms until `done()`; the time each call took [s]."""
+    costs = []
+    end = time.monotonic() + timeout
+    while not done():
+        assert time.monotonic() < end, "timed out"
+        start = time.perf_counter()
+        viewer.show(HUD)
+        costs.append(time.perf_counter() - start)
+        time.sleep(0.01)
+    return costs
+
+
+def test_show_never_waits_for_a_frame_and_close_stops_the_render_thread(
+        make_viewer: Callable[[], Viewer], monkeypatch: pytest.MonkeyPatch) -> None:
+    import mujoco
+
+    render = mujoco.mjr_render
+
+    def slow_render(*args: object) -> None:  # a frame far slower than a control period
+        time.sleep(0.5)
+        render(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(mujoco, "mjr_render", slow_render)
+    viewer = make_viewer()
+    costs = show_until(viewer, lambda: viewer.frames >= 2)
+    assert max(costs) < 0.25, f"show() waited for a frame: {max(costs):.3f} s"
+    assert len(costs) > 20  # ticks went on while each frame took 0.5 s
+    assert viewer.fps > 0
+    picture = viewer.pygame.surfarray.array3d(viewer.window)
+    assert picture[:, 100:380].std() > 20, "the scene is blank"
+    viewer.close()
+    assert not viewer._frames.running
+    assert viewer._frames.error is None
+
+
+def test_a_render_thread_failure_is_raised_by_show(make_viewer: Callable[[], Viewer],
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    import mujoco
+
+    viewer = make_viewer()
+    show_until(viewer, lambda: viewer.frames >= 1)
+
+    def broken(*args: object) -> None:
+        raise RuntimeError("the GL driver fell over")
+
+    monkeypatch.setattr(mujoco, "mjr_render", broken)
+    with pytest.raises(FetchError, match="render thread failed: RuntimeError: the GL driver fell over"):
+        show_until(viewer, lambda: False)
+    assert not viewer._frames.running  # the thread ended, having freed its GL context
+
+
+def test_no_opengl_is_a_fetch_error(make_viewer: Callable[[], Viewer], monkeypatch: pytest.MonkeyPatch) -> None:
+    import mujoco.gl_context
+
+    def no_gl(*args: object) -> None:
+        raise RuntimeError("no GL here")
+
+    monkeypatch.setattr(mujoco.gl_context, "GLContext", no_gl)
+    with pytest.raises(FetchError, match="viewer cannot render with MUJOCO_GL=.*no GL here"):
+        make_viewer()

@@ -7,7 +7,6 @@ a screenshot of the window is saved at the 5th frame; the timing is printed as J
 from __future__ import annotations
 
 import json
-import math
 import sys
 
 import numpy as np
@@ -22,9 +21,9 @@ class ShootingViewer(Viewer):
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
         self.path = path
 
-    def show(self, hud: HudState, deadline: float = math.inf) -> None:
+    def show(self, hud: HudState) -> None:
         before = self.frames
-        super().show(hud, deadline)
+        super().show(hud)
         if self.frames == 5 and before == 4:
             self.screenshot(self.path)
 

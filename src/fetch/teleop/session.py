@@ -107,8 +107,9 @@ class HudState:
 class Display(Protocol):
     """A window that shows the scene and the HUD once per tick (the viewer; None when headless)."""
 
-    def show(self, hud: HudState, deadline: float = math.inf) -> None:
-        """Draw, if there is time before `deadline` [s, perf_counter], the next control tick."""
+    def show(self, hud: HudState) -> None:
+        """Read the window's input and show the newest picture of the scene with the HUD; never waits for a
+        frame to be drawn (the control loop calls it every tick)."""
 
     def next_camera(self) -> None: ...
 
@@ -195,16 +196,22 @@ class Clock:
         self.period = 1.0 / hz if hz > 0 else 0.0
         self.next = time.perf_counter()
         self.late = 0
+        self._restarted = False
 
     def restart(self) -> None:
-        self.next = time.perf_counter()
+        """Start over: the next `wait` returns at once, and the deadlines follow from then (what ran between,
+        such as a reset and a frame shown, is the gap between attempts, not lateness)."""
+        self._restarted = True
 
     def wait(self) -> float:
         """Sleep until the next deadline; returns the deadline [s, perf_counter]."""
         if not self.period:
             return time.perf_counter()
         now = time.perf_counter()
-        if now - self.next > self.period:  # a whole period lost: start again rather than rush
+        if self._restarted:
+            self._restarted = False
+            self.next = now
+        elif now - self.next > self.period:  # a whole period lost: start again rather than rush
             self.late += 1
             self.next = now
         deadline = self.next
@@ -262,7 +269,7 @@ class Session:
                     break
         except KeyboardInterrupt:
             self.log("interrupted: finishing the saves")
-        except FetchError as e:  # the writer failed: stop collecting, keep what is saved
+        except FetchError as e:  # the writer or the viewer failed: stop collecting, keep what is saved
             error = str(e)
         finally:
             try:
@@ -351,9 +358,8 @@ class Session:
     def _show(self, number: int, step: int, info: dict[str, Any], held: int, command: Command) -> None:
         if self.display is None:
             return
-        deadline = self.clock.next if self.clock.period else math.inf
         self.display.show(HudState(
             env_id=self.config.env_id, attempt=number, saved=self.writer.saved, target=self.config.episodes,
             step=step, max_steps=self.config.max_steps, success=info.get("is_success", 0.0) >= 1.0, held=held,
             hold_needed=self.config.success_hold_steps, gripper_closed=self._gripper_closed,
-            precision=command.precision, status=command.status), deadline)
+            precision=command.precision, status=command.status))
