@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from fetch.dataset.schema import Layout, image_key
+from fetch.dataset.schema import Layout
 
 
 @dataclasses.dataclass
@@ -32,6 +32,7 @@ class EpisodeBuffer:
 
     `begin` takes the reset's observation and state; `record` one step: the action applied, what
     the env returned, and the state after it. Recording copies values in; nothing aliases the env.
+    Camera images are not recorded here: the writer renders them from the states.
     """
 
     def __init__(self, layout: Layout, capacity: int = 64) -> None:
@@ -44,8 +45,6 @@ class EpisodeBuffer:
         n = capacity
         self.actions = np.zeros((n, 4), np.float32)
         self.obs = {key: np.zeros((n + 1, size)) for key, size in self.layout.obs_sizes}
-        s = self.layout.image_size
-        self.images = {c: np.zeros((n + 1, s, s, 3), np.uint8) for c in self.layout.cameras}
         self.rewards = np.zeros(n)
         self.terminated = np.zeros(n, bool)
         self.truncated = np.zeros(n, bool)
@@ -56,31 +55,20 @@ class EpisodeBuffer:
     def _grow(self) -> None:
         saved = {name: getattr(self, name) for name in ("actions", "rewards", "terminated", "truncated",
                                                          "is_success", "states", "timestamps")}
-        obs, images = self.obs, self.images
+        obs = self.obs
         self._capacity *= 2
         self._allocate(self._capacity)
         for name, array in saved.items():
             getattr(self, name)[: len(array)] = array
         for key, array in obs.items():
             self.obs[key][: len(array)] = array
-        for key, array in images.items():
-            self.images[key][: len(array)] = array
 
-    def begin(self, obs: Mapping[str, np.ndarray], state: np.ndarray,
-              images: Mapping[str, np.ndarray] | None = None) -> None:
+    def begin(self, obs: Mapping[str, np.ndarray], state: np.ndarray) -> None:
         """Start a new episode from the reset's observation and `env.get_state()`."""
         self.length = 0
         for key, rows in self.obs.items():
             rows[0] = obs[key]
-        self._check_images(images)
-        for camera, frames in self.images.items():
-            frames[0] = images[camera]  # type: ignore[index]
         self.states[0] = state
-
-    def _check_images(self, images: Mapping[str, np.ndarray] | None) -> None:
-        if self.images and (images is None or set(images) != set(self.images)):
-            raise ValueError(f"this buffer records cameras {sorted(self.images)}; got images of "
-                             f"{sorted(images) if images is not None else 'none'}")
 
     def state_row(self) -> np.ndarray:
         """Where the state after the next recorded step goes (for `env.get_state(out=...)`)."""
@@ -89,8 +77,7 @@ class EpisodeBuffer:
         return self.states[self.length + 1]
 
     def record(self, action: np.ndarray, obs: Mapping[str, np.ndarray], reward: float, terminated: bool,
-               truncated: bool, success: bool, timestamp: float,
-               images: Mapping[str, np.ndarray] | None = None) -> None:
+               truncated: bool, success: bool, timestamp: float) -> None:
         """Append one step; the state after it must already be in `state_row()`."""
         t = self.length
         if t == self._capacity:
@@ -98,9 +85,6 @@ class EpisodeBuffer:
         self.actions[t] = action
         for key, rows in self.obs.items():
             rows[t + 1] = obs[key]
-        self._check_images(images)
-        for camera, frames in self.images.items():
-            frames[t + 1] = images[camera]  # type: ignore[index]
         self.rewards[t] = reward
         self.terminated[t] = terminated
         self.truncated[t] = truncated
@@ -115,9 +99,6 @@ class EpisodeBuffer:
         for key, rows in self.obs.items():
             arrays[f"obs/{key}"] = rows[:t].copy()
             arrays[f"next_obs/{key}"] = rows[1 : t + 1].copy()
-        for camera, frames in self.images.items():
-            arrays[f"obs/{image_key(camera)}"] = frames[:t].copy()
-            arrays[f"next_obs/{image_key(camera)}"] = frames[1 : t + 1].copy()
         dones = np.zeros(t, np.uint8)
         if t:
             dones[-1] = 1

@@ -232,20 +232,18 @@ class Session:
         self.device = device
         self.display = display
         self.log = log or (lambda text: print(text, flush=True))
-        self._camera_renderer: Any = None
-        if config.cameras:
-            from fetch.rendering import OffscreenRenderer
-
-            known = [self.base.model.camera(i).name for i in range(self.base.model.ncam)]
-            for camera in config.cameras:
-                if camera not in known:
-                    raise UnknownNameError("camera", camera, known)
-            self._camera_renderer = OffscreenRenderer(self.base.model, config.image_size, config.image_size)
+        known = [self.base.model.camera(i).name for i in range(self.base.model.ncam)]
+        for camera in config.cameras:
+            if camera not in known:
+                raise UnknownNameError("camera", camera, known)
         self.saved_this_session = 0
         self.writer = open_writer(config, self.env, self._on_saved)
         if getattr(self.writer, "recovered", 0):
             self.log(f"recovered {self.writer.recovered} demo(s) written just before an interruption")
-        self.buffer = EpisodeBuffer(observation_layout(self.env, config), capacity=min(config.max_steps, 1024))
+        # The loop records states only: the writer renders `--cameras` images from them in another
+        # process once the demo is saved, so images cost the control loop nothing.
+        self.buffer = EpisodeBuffer(observation_layout(self.env, config).with_cameras((), 0),
+                                    capacity=min(config.max_steps, 1024))
         self.clock = Clock(config.rate(self.base.dt))
         self.attempts: list[Attempt] = []
         self._gripper_closed = False
@@ -279,8 +277,6 @@ class Session:
             self.device.close()
             if self.display is not None:
                 self.display.close()
-            if self._camera_renderer is not None:
-                self._camera_renderer.close()
         rates = [a.achieved_hz for a in self.attempts if a.achieved_hz > 0]
         return SessionSummary(self.attempts, self.saved_this_session, self.writer.saved, self.config.out,
                               float(np.mean(rates)) if rates else 0.0, self.clock.late, error)
@@ -292,7 +288,7 @@ class Session:
         seed = cfg.seed + number
         obs, info = env.reset(seed=seed)
         self.device.reset()
-        buf.begin(obs, self.base.get_state(), self._images())
+        buf.begin(obs, self.base.get_state())
         started = time.time()
         held = 0
         success = False
@@ -321,7 +317,7 @@ class Session:
             self.ticks.append((deadline, polled, time.perf_counter()))
             self.base.get_state(out=buf.state_row())
             ok = info["is_success"] >= 1.0
-            buf.record(action, obs, float(reward), terminated, truncated, ok, now, self._images())
+            buf.record(action, obs, float(reward), terminated, truncated, ok, now)
             held = held + 1 if ok else 0
             success = success or held >= cfg.success_hold_steps
             if success and cfg.stop_on_success:
@@ -348,12 +344,6 @@ class Session:
             saved_as = self.writer.commit(demo)
             self.saved_this_session += 1
         return Attempt(number, seed, t, success, ended_by, saved_as, achieved)
-
-    def _images(self) -> dict[str, np.ndarray] | None:
-        """The recorded cameras' images of the current state (`--cameras`), or None."""
-        if self._camera_renderer is None:
-            return None
-        return {c: self._camera_renderer.render(self.base.data, c) for c in self.config.cameras}
 
     def _show(self, number: int, step: int, info: dict[str, Any], held: int, command: Command) -> None:
         if self.display is None:
