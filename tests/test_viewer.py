@@ -46,6 +46,30 @@ def test_viewer_shows_scene_and_hud_at_the_control_rate(tmp_path: pathlib.Path) 
     assert ((legend > 200).all(axis=2)).mean() > 0.005, "no controls legend at the bottom"
 
 
+@pytest.mark.skipif(shutil.which("xvfb-run") is None or shutil.which("xdotool") is None,
+                    reason="needs xvfb-run and xdotool (apt-get install xvfb xdotool)")
+def test_keyboard_drives_the_collector_through_real_key_events(tmp_path: pathlib.Path) -> None:
+    from fetch.dataset import open_dataset, validate
+
+    out = tmp_path / "out"
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    run = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", sys.executable,
+                          str(SCRIPT.with_name("keyboard_session.py")), str(out)],
+                         capture_output=True, text=True, timeout=300, env=env)
+    assert run.returncode == 0, run.stderr[-3000:]
+    report = json.loads(run.stdout.strip().splitlines()[-1])
+    assert report["code"] == 0, report["output"]
+    assert "ended by discard, not saved" in report["output"] and "ended by quit" in report["output"]
+    with open_dataset(out) as ds:
+        assert validate(ds) == [] and ds.demo_names == ["demo_0"] and ds.masks()["failed"] == ["demo_0"]
+        assert ds.attrs("demo_0")["device"] == "keyboard" and ds.data_attrs["attempts"] == 3
+        actions = ds.demo("demo_0")["actions"][()]
+    up = np.flatnonzero((actions[:, 2] == 1.0) & (actions[:, 3] == 1.0))  # R held, gripper open
+    closed = np.flatnonzero(actions[:, 3] == -1.0)  # after space
+    assert len(up) >= 5 and len(closed) >= 3 and up.max() < closed.min(), actions
+    assert not actions[:, :2].any()  # Left was held in the discarded attempt only
+
+
 def test_keyboard_mapping() -> None:
     state = KeyboardState()
     c = keyboard_command({"up"}, set(), state)
