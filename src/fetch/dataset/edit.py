@@ -20,7 +20,7 @@ import numpy as np
 from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.reader import Dataset, open_dataset
-from fetch.dataset.writer import fsync_path, lock_directory, rewritten, unlock_directory
+from fetch.dataset.writer import lock_directory, replacing, rewritten, unlock_directory
 from fetch.errors import DatasetError, FetchError
 
 SAME = ("env_id", "env_kwargs", "layout", "model_hash")
@@ -87,17 +87,8 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
                 raise DatasetError("these datasets cannot be merged (demos of different tasks, arrays or models "
                                    "would be mixed):\n  " + "\n  ".join(differences))
         total = sum(len(s.demo_names) for s in sources)
-        tmp = target.with_name(f".{target.name}.tmp")
-        try:
-            with h5py.File(tmp, "w") as f:
-                report = _write_merged(f, sources, total, target)
-            fsync_path(tmp)
-            os.replace(tmp, target)
-            fsync_path(target.parent)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                tmp.unlink()
-            raise
+        with replacing(target) as tmp, h5py.File(tmp, "w") as f:
+            report = _write_merged(f, sources, total, target)
     return report
 
 

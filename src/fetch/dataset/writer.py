@@ -80,21 +80,27 @@ def hdf5_bytes(build: Callable[[h5py.File], None]) -> bytes:
     return buffer.getvalue()
 
 
-def atomic_write(path: pathlib.Path, content: bytes) -> None:
-    """Replace `path` with `content` all at once: temp file, fsync, rename, fsync the directory.
-    On failure (OSError) the old `path` is untouched and the temp file removed."""
+@contextlib.contextmanager
+def replacing(path: pathlib.Path) -> Iterator[pathlib.Path]:
+    """Yields a temporary path to write `path`'s new content to; when the block finishes, it is
+    flushed to disk and renamed over `path` (and the directory flushed). If the block or the
+    rename fails, the old `path` is untouched and the temporary file removed."""
     tmp = path.with_name(f".{path.name}.tmp")
     try:
-        with open(tmp, "wb") as f:
-            f.write(content)
-            f.flush()
-            os.fsync(f.fileno())
+        yield tmp
+        fsync_path(tmp)
         os.replace(tmp, path)
         fsync_path(path.parent)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+
+
+def atomic_write(path: pathlib.Path, content: bytes) -> None:
+    """Replace `path` with `content` all at once (see `replacing`)."""
+    with replacing(path) as tmp:
+        tmp.write_bytes(content)
 
 
 def write_demo_file(path: pathlib.Path, name: str, demo: Demo) -> None:
