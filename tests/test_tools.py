@@ -168,13 +168,18 @@ def test_render_obs_failure_leaves_the_dataset_as_it_was(plain: pathlib.Path,
     assert not [p for p in plain.rglob("*.tmp")]
 
 
-def test_render_obs_waits_for_the_collector(plain: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize("command", [["render-obs", "--camera", "front", "--size", "16"], ["split", "--valid", "0.5"]])
+def test_tools_that_edit_wait_for_the_collector(plain: pathlib.Path, command: list[str],
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    index = (plain / "demos.hdf5").read_bytes()
     collector = BackgroundWriter(plain, on_saved=None)  # holds the directory's lock as a collector does
     try:
-        assert main(["render-obs", str(plain), "--camera", "front", "--size", "16"]) == 2
+        assert main([command[0], str(plain), *command[1:]]) == 2
         assert "in use by another collector or tool" in capsys.readouterr().err
     finally:
         collector._unlock()
+    assert (plain / "demos.hdf5").read_bytes() == index
+    assert main([command[0], str(plain), *command[1:]]) == 0
 
 
 @pytest.mark.parametrize("args, problem", [

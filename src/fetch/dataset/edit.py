@@ -19,8 +19,8 @@ import numpy as np
 
 from fetch._progress import progress
 from fetch.dataset import schema
-from fetch.dataset.reader import Dataset, open_dataset
-from fetch.dataset.writer import lock_directory, replacing, rewritten, unlock_directory
+from fetch.dataset.reader import Dataset, open_dataset, resolve
+from fetch.dataset.writer import editing, replacing, rewritten
 from fetch.errors import DatasetError, FetchError
 
 SAME = ("env_id", "env_kwargs", "layout", "model_hash")
@@ -149,25 +149,20 @@ def split(path: str | os.PathLike[str], valid: float, seed: int = 0) -> dict[str
     demos stay in `mask/failed`; other filter keys are kept. Returns the new mask sizes."""
     if not 0.0 <= valid < 1.0:
         raise FetchError(f"--valid must be a fraction in [0, 1), got {valid}")
-    with open_dataset(path) as ds:
-        index = ds.path
-        inside = all(ds.demo_file(n)[0] == index for n in ds.demo_names)
-        masks = ds.masks()
-        successful = [n for n in ds.demo_names if bool(ds.demo(n).attrs["success"])]
-        failed = [n for n in ds.demo_names if n not in set(successful)]
-    count = int(round(valid * len(successful)))
-    if valid > 0 and len(successful) >= 2:
-        count = min(max(count, 1), len(successful) - 1)
-    chosen = set(np.random.default_rng(seed).permutation(len(successful))[:count].tolist())
-    masks["valid"] = [n for i, n in enumerate(successful) if i in chosen]
-    masks["train"] = [n for i, n in enumerate(successful) if i not in chosen]
-    masks["failed"] = failed
-    lock = None if inside else lock_directory(index.parent, "run it when the collector has finished")
-    try:
+    index = resolve(path)
+    with editing(index):
+        with open_dataset(index) as ds:
+            masks = ds.masks()
+            successful = [n for n in ds.demo_names if bool(ds.demo(n).attrs["success"])]
+            failed = [n for n in ds.demo_names if n not in set(successful)]
+        count = int(round(valid * len(successful)))
+        if valid > 0 and len(successful) >= 2:
+            count = min(max(count, 1), len(successful) - 1)
+        chosen = set(np.random.default_rng(seed).permutation(len(successful))[:count].tolist())
+        masks["valid"] = [n for i, n in enumerate(successful) if i in chosen]
+        masks["train"] = [n for i, n in enumerate(successful) if i not in chosen]
+        masks["failed"] = failed
         with rewritten(index) as f:
             write_masks(f, masks)
             f["data"].attrs["split"] = json.dumps({"valid": valid, "seed": seed})
-    finally:
-        if lock is not None:
-            unlock_directory(lock)
     return {k: len(masks[k]) for k in schema.SPLITS}

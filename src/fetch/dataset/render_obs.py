@@ -8,6 +8,7 @@ failed or interrupted run leaves the dataset as it was.
 
 from __future__ import annotations
 
+import collections
 import concurrent.futures
 import dataclasses
 import os
@@ -21,8 +22,8 @@ import numpy as np
 
 from fetch._progress import progress
 from fetch.dataset import schema
-from fetch.dataset.reader import open_dataset
-from fetch.dataset.writer import Rewrites, lock_directory, unlock_directory
+from fetch.dataset.reader import open_dataset, resolve
+from fetch.dataset.writer import Rewrites, editing
 from fetch.errors import DatasetError, FetchError
 
 
@@ -65,24 +66,20 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
     workers = workers or default_workers()
     if workers < 1:
         raise FetchError(f"--workers must be at least 1, got {workers}")
-    with open_dataset(path) as ds:
-        index, env_id, env_kwargs, layout = ds.path, ds.env_id, ds.env_kwargs, ds.layout
-        names = list(ds.demo_names)
-        where = {name: ds.demo_file(name) for name in names}
-    if layout.cameras and size != layout.image_size:
-        raise FetchError(f"{index} holds {layout.image_size}-pixel images ({', '.join(layout.cameras)}); a dataset "
-                         f"has one image size, so use --size {layout.image_size}")
-    if camera in layout.cameras and not overwrite:
-        raise FetchError(f"{index} already has {schema.image_key(camera)}; pass --overwrite to render it again")
-    from fetch.dataset.frames import camera_names, check_camera
+    index = resolve(path)
+    with editing(index):
+        with open_dataset(index) as ds:
+            env_id, env_kwargs, layout = ds.env_id, ds.env_kwargs, ds.layout
+            names = list(ds.demo_names)
+            where = {name: ds.demo_file(name) for name in names}
+        if layout.cameras and size != layout.image_size:
+            raise FetchError(f"{index} holds {layout.image_size}-pixel images ({', '.join(layout.cameras)}); a "
+                             f"dataset has one image size, so use --size {layout.image_size}")
+        if camera in layout.cameras and not overwrite:
+            raise FetchError(f"{index} already has {schema.image_key(camera)}; pass --overwrite to render it again")
+        from fetch.dataset.frames import camera_names, check_camera
 
-    check_camera(camera, camera_names(env_id, env_kwargs))  # before any work
-
-    # A collector's directory (demos in their own files): hold its lock, so no collector appends
-    # while the files change. A merged file holds its demos itself.
-    in_directory = any(shard != index for shard, _ in where.values())
-    lock = lock_directory(index.parent, "run it when the collector has finished") if in_directory else None
-    try:
+        check_camera(camera, camera_names(env_id, env_kwargs))  # before any work
         start = time.perf_counter()
         frames = 0
         key = schema.image_key(camera)
@@ -98,9 +95,6 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
             with rewrites.edit(index) as f:  # last: the layout names the camera once every demo has it
                 f["data"].attrs["layout"] = new_layout
         return RenderReport(len(names), frames, time.perf_counter() - start, workers)
-    finally:
-        if lock is not None:
-            unlock_directory(lock)
 
 
 def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size: int, camera: str,
@@ -109,15 +103,28 @@ def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size
     from fetch.dataset.frames import RenderPool
 
     with RenderPool(env_id, env_kwargs, size, workers) as pool, open_dataset(index) as ds:
-        futures = [pool.submit(ds.demo(name)["states"][()], (camera,)) for name in names]
+        queue = iter(names)
+        pending: collections.deque[tuple[str, concurrent.futures.Future[dict[str, np.ndarray]]]] = \
+            collections.deque()
+
+        def submit_next() -> None:
+            name = next(queue, None)
+            if name is not None:
+                pending.append((name, pool.submit(ds.demo(name)["states"][()], (camera,))))
+
+        for _ in range(2 * workers):  # a few demos ahead of the writing, not every demo's images at once
+            submit_next()
         try:
-            for name, future in zip(names, futures, strict=True):
+            while pending:
+                name, future = pending.popleft()
                 try:
-                    yield name, future.result()[camera]
+                    images = future.result()[camera]
                 except concurrent.futures.process.BrokenProcessPool as e:
                     raise DatasetError(f"a render worker died while rendering {name}: {e}") from e
+                submit_next()
+                yield name, images
         finally:
-            for future in futures:
+            for _, future in pending:
                 future.cancel()
 
 

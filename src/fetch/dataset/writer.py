@@ -137,6 +137,20 @@ def unlock_directory(handle: Any) -> None:
     handle.close()
 
 
+@contextlib.contextmanager
+def editing(index: pathlib.Path) -> Iterator[None]:
+    """Hold a collector's directory (it has `episodes/` beside `index`) while a tool reads and edits
+    it, so no collector appends meanwhile; a single-file dataset needs no lock."""
+    if not (index.parent / schema.EPISODES_DIR).is_dir():
+        yield
+        return
+    handle = lock_directory(index.parent, "run it when the collector has finished")
+    try:
+        yield
+    finally:
+        unlock_directory(handle)
+
+
 class Rewrites:
     """Edits of HDF5 files that replace the originals together, when the block ends, or not at all.
 
