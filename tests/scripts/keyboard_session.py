@@ -24,19 +24,29 @@ def main(out: str) -> None:
                                   "keyboard", "--keep-failures", "--max-steps", "400", "--render", "human",
                                   "--out", out], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        window = xdotool("search", "--sync", "--pid", str(collector.pid)).split()[-1]
-        xdotool("mousemove", "--window", window, "100", "100")  # no window manager: focus follows the pointer
-        time.sleep(1.0)
+        # The collector's visible window (SDL also makes hidden ones); no window manager runs, so
+        # give it the focus and put the pointer over it, then let the session start.
+        window = xdotool("search", "--sync", "--onlyvisible", "--pid", str(collector.pid)).split()[-1]
+        xdotool("windowfocus", "--sync", window)
+        xdotool("mousemove", "--window", window, "100", "100")
+        time.sleep(2.0)
         for step in (("keydown", "r"), 0.6, ("keyup", "r"), ("key", "space"), 0.4, ("key", "Return"), 1.0,
-                     ("keydown", "Left"), 0.4, ("keyup", "Left"), ("key", "BackSpace"), 1.0, ("key", "Escape")):
+                     ("keydown", "Left"), 0.4, ("keyup", "Left"), ("key", "BackSpace"), 1.0):
             if isinstance(step, float):
                 time.sleep(step)
             else:
                 xdotool(*step)
-        output, _ = collector.communicate(timeout=120)
+        for _ in range(30):  # Escape until it has quit (a loaded machine may take a moment to notice)
+            xdotool("key", "Escape")
+            try:
+                collector.wait(timeout=1.0)
+                break
+            except subprocess.TimeoutExpired:
+                continue
     finally:
         if collector.poll() is None:
             collector.kill()
+        output, _ = collector.communicate(timeout=60)
     print(json.dumps({"code": collector.returncode, "output": output}))
 
 
