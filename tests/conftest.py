@@ -18,12 +18,13 @@ def env_id(request: pytest.FixtureRequest) -> str:
 
 
 @pytest.fixture
-def pad() -> Iterator[object]:
+def pad(monkeypatch: pytest.MonkeyPatch) -> Iterator[object]:
     """An Xbox-layout virtual pad (tests/vpad.py); SDL is process-global, so pygame is shut down after."""
     import pygame
 
     import vpad
 
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
     vpad.init_headless()
     virtual = vpad.VirtualPad()
     yield virtual

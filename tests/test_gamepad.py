@@ -211,7 +211,8 @@ def test_flags_override_the_profile_but_defaults_do_not(tmp_path: Path) -> None:
 
 
 @pytest.fixture
-def no_pad() -> Iterator[None]:
+def no_pad(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
     vpad.init_headless()
     yield
     pygame.quit()

@@ -22,17 +22,22 @@ from fetch.teleop.viewer import Viewer, camera_yaw
 SCRIPT = pathlib.Path(__file__).parent / "scripts" / "viewer_session.py"
 
 
+def desktop_env() -> dict[str, str]:
+    """This environment as a desktop session has it: MuJoCo renders through the display's GL (this
+    process chose EGL, having no display) and SDL opens real X windows (not a test's dummy driver)."""
+    return {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "SDL_VIDEODRIVER")}
+
+
 @pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="needs xvfb-run (apt-get install xvfb)")
 def test_viewer_shows_scene_and_hud_at_the_control_rate(tmp_path: pathlib.Path) -> None:
     pygame = pytest.importorskip("pygame")
     shot = tmp_path / "shot.png"
-    # As on a desktop: MuJoCo renders through the display's GL (this process chose EGL, having none).
-    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
     run = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", sys.executable, str(SCRIPT),
-                          str(tmp_path / "out"), str(shot)], capture_output=True, text=True, timeout=300, env=env)
+                          str(tmp_path / "out"), str(shot)], capture_output=True, text=True, timeout=300,
+                         env=desktop_env())
     assert run.returncode == 0, run.stderr[-3000:]
     report = json.loads(run.stdout.strip().splitlines()[-1])
-    assert report["saved"] == 2
+    assert report["saved"] == 2 and report["driver"] == "x11", report  # a real X window
     assert report["frames"] >= 5
     assert report["achieved_hz"] > 20.0, report  # 25 Hz asked; the window must not slow control down
     image = pygame.surfarray.array3d(pygame.image.load(str(shot))).swapaxes(0, 1)  # (H, W, 3)
@@ -52,10 +57,9 @@ def test_keyboard_drives_the_collector_through_real_key_events(tmp_path: pathlib
     from fetch.dataset import open_dataset, validate
 
     out = tmp_path / "out"
-    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
     run = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", sys.executable,
                           str(SCRIPT.with_name("keyboard_session.py")), str(out)],
-                         capture_output=True, text=True, timeout=300, env=env)
+                         capture_output=True, text=True, timeout=300, env=desktop_env())
     assert run.returncode == 0, run.stderr[-3000:]
     report = json.loads(run.stdout.strip().splitlines()[-1])
     assert report["code"] == 0, report["output"]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import ctypes
-import os
 import re
 
 import pygame
@@ -47,8 +46,8 @@ def sdl_library() -> ctypes.CDLL:
 
 
 def init_headless() -> None:
-    """pygame's display (no window, dummy driver) and joystick modules, as the gamepad needs them."""
-    os.environ["SDL_VIDEODRIVER"] = "dummy"
+    """pygame's display and joystick modules, as the gamepad needs them. Set SDL_VIDEODRIVER=dummy
+    first (no window; the fixtures do it with monkeypatch, so it does not leak into other tests)."""
     pygame.display.init()
     pygame.joystick.init()
 

@@ -34,11 +34,14 @@ def main() -> None:
     env = make_env(config)
     viewer = ShootingViewer(env, "gamepad", path=shot)
     session = Session(config, ExpertDevice(env), env=env, display=viewer)
+    import pygame
+
+    driver = pygame.display.get_driver()  # while the window is open: x11 under Xvfb, not a dummy
     summary = session.run()
     ticks = np.array(session.ticks)
     late = (ticks[:, 1] - ticks[:, 0]) * 1000.0
     print(json.dumps({"saved": summary.saved, "achieved_hz": summary.achieved_hz, "frames": viewer.frames,
-                      "ticks": viewer.ticks, "p99_late_ms": float(np.percentile(late, 99))}))
+                      "ticks": viewer.ticks, "p99_late_ms": float(np.percentile(late, 99)), "driver": driver}))
 
 
 if __name__ == "__main__":
