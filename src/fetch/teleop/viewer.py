@@ -131,14 +131,14 @@ class FrameThread:
             # Made, used and freed on this thread: a GL context is current on one thread at a time.
             gl = mujoco.gl_context.GLContext(*self._size)
             try:
-                with gl.as_current():
-                    context = mujoco.MjrContext(self._model, mujoco.mjtFontScale.mjFONTSCALE_100)
-                    try:
-                        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context)
-                        self._started.set()
-                        self._draw_until_stopped(context)
-                    finally:
-                        context.free()
+                gl.make_current()  # nothing else is current on this thread (as_current is mujoco >= 3.4)
+                context = mujoco.MjrContext(self._model, mujoco.mjtFontScale.mjFONTSCALE_100)
+                try:
+                    mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context)
+                    self._started.set()
+                    self._draw_until_stopped(context)
+                finally:
+                    context.free()
             finally:
                 gl.free()
         except BaseException as exc:  # kept for the caller to raise on its own thread
