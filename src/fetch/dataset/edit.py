@@ -20,7 +20,7 @@ import numpy as np
 from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.reader import Dataset, open_dataset, resolve
-from fetch.dataset.writer import editing, replacing, rewritten
+from fetch.dataset.writer import editing, package_versions, replacing, rewritten
 from fetch.errors import DatasetError, FetchError
 
 SAME = ("env_id", "env_kwargs", "layout", "model_hash")
@@ -93,8 +93,6 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
 
 
 def _write_merged(f: h5py.File, sources: list[Dataset], total: int, target: pathlib.Path) -> MergeReport:
-    from fetch.teleop.session import package_versions
-
     first = sources[0]
     settings = dict(first.settings)
     for s in sources[1:]:  # keep the settings all inputs share; the differing ones go to `sources`

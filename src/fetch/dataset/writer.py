@@ -13,12 +13,14 @@ import contextlib
 import dataclasses
 import errno
 import fcntl
+import importlib.metadata
 import io
 import json
 import os
 import pathlib
 import queue
 import shutil
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -52,6 +54,19 @@ class Header:
 
     def env_args(self) -> str:
         return json.dumps({"env_name": self.env_id, "type": schema.ENV_TYPE_GYM, "env_kwargs": self.env_kwargs})
+
+
+def package_versions() -> dict[str, str]:
+    """The versions a dataset records as having made it (`data.attrs['versions']`)."""
+    import gymnasium
+    import mujoco
+
+    import fetch
+
+    return {"fetch": fetch.__version__, "mujoco": mujoco.__version__, "gymnasium": gymnasium.__version__,
+            "numpy": np.__version__, "h5py": h5py.__version__,
+            "gymnasium_robotics": importlib.metadata.version("gymnasium-robotics"),
+            "python": sys.version.split()[0]}
 
 
 @dataclasses.dataclass

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import importlib.metadata
 import math
 import sys
 import time
@@ -16,7 +15,7 @@ import numpy as np
 import fetch
 from fetch.dataset import schema
 from fetch.dataset.episode import Demo, EpisodeBuffer
-from fetch.dataset.writer import BackgroundWriter, DatasetWriter, Header
+from fetch.dataset.writer import BackgroundWriter, DatasetWriter, Header, package_versions
 from fetch.errors import FetchError, UnknownNameError
 from fetch.teleop.devices import DEVICES, Command, Device
 
@@ -149,16 +148,6 @@ class SessionSummary:
         text = (f"{n} attempts, {self.saved} saved this session ({self.total_saved} in {self.out}), "
                 f"success rate {100 * self.success_rate:.0f}%, achieved control rate {rate}")
         return text + (f"\nerror: {self.error}" if self.error else "")
-
-
-def package_versions() -> dict[str, str]:
-    import h5py
-    import mujoco
-
-    return {"fetch": fetch.__version__, "mujoco": mujoco.__version__, "gymnasium": gym.__version__,
-            "numpy": np.__version__, "h5py": h5py.__version__,
-            "gymnasium_robotics": importlib.metadata.version("gymnasium-robotics"),
-            "python": sys.version.split()[0]}
 
 
 def make_env(config: CollectConfig) -> gym.Env:
