@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 
 from fetch import observation as ob
+from fetch import rendering
 from fetch.errors import FetchError, UnknownNameError
 from fetch.robot import N_SUBSTEPS, Robot, build_spec
 from fetch.tasks import task_class
@@ -93,9 +94,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._compiled = compiled
         self._start_state = compiled.start_state
         self._grip_start = compiled.grip_start
-        cameras = [self.model.camera(i).name for i in range(self.model.ncam)]
-        if camera_name not in cameras:
-            raise UnknownNameError("camera", camera_name, cameras)
+        rendering.check_camera(self.model, camera_name)
         self.reward_type = reward_type
         self.render_mode = render_mode
         self.width, self.height = int(width), int(height)
@@ -245,8 +244,6 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode= to gym.make")
             return None
-        from fetch import rendering
-
         if self.render_mode == "human":
             if self._viewer is None:
                 self._viewer = rendering.HumanViewer(self.model, self.data, self.camera_name, self.hide_goal)

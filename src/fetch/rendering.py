@@ -10,10 +10,21 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from fetch.errors import FetchError
+from fetch.errors import FetchError, UnknownNameError
 
 GOAL_GROUP = 2
 """Geom group holding only the goal marker; turned off to hide it."""
+
+
+def camera_names(model: mujoco.MjModel) -> tuple[str, ...]:
+    """The model's cameras, in order."""
+    return tuple(model.camera(i).name for i in range(model.ncam))
+
+
+def check_camera(model: mujoco.MjModel, camera: str) -> None:
+    """UnknownNameError naming the model's cameras unless `camera` is one of them."""
+    if camera not in camera_names(model):
+        raise UnknownNameError("camera", camera, camera_names(model))
 
 
 def _scene_option(hide_goal: bool) -> mujoco.MjvOption:

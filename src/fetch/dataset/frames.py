@@ -15,23 +15,19 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fetch.errors import FetchError, UnknownNameError
+from fetch.errors import FetchError
 
 
-def camera_names(env_id: str, env_kwargs: dict[str, Any]) -> tuple[str, ...]:
-    """The cameras of an env (its model's, in order), without a GL context."""
+def check_env_camera(env_id: str, env_kwargs: dict[str, Any], camera: str) -> None:
+    """UnknownNameError unless the env has `camera` (checked without a GL context)."""
     import fetch  # noqa: F401  (registers the ids)
+    from fetch.rendering import check_camera
 
     env: Any = gym.make(env_id, **env_kwargs).unwrapped
     try:
-        return tuple(env.model.camera(i).name for i in range(env.model.ncam))
+        check_camera(env.model, camera)
     finally:
         env.close()
-
-
-def check_camera(camera: str, cameras: tuple[str, ...]) -> None:
-    if camera not in cameras:
-        raise UnknownNameError("camera", camera, cameras)
 
 
 class StateRenderer:
@@ -39,20 +35,22 @@ class StateRenderer:
 
     def __init__(self, env_id: str, env_kwargs: dict[str, Any], width: int, height: int) -> None:
         import fetch  # noqa: F401  (registers the ids; picks an offscreen GL backend)
-        from fetch.rendering import OffscreenRenderer
+        from fetch.rendering import OffscreenRenderer, camera_names
 
         if width <= 0 or height <= 0:
             raise FetchError(f"image size must be positive pixels, got {width}x{height}")
         env: Any = gym.make(env_id, **env_kwargs).unwrapped
         self.env = env
         model = env.model
-        self.cameras = tuple(model.camera(i).name for i in range(model.ncam))
+        self.cameras = camera_names(model)
         self.width, self.height = width, height
         # The same renderer and settings as `collect --cameras`: images match those recorded live.
         self._renderer = OffscreenRenderer(model, width, height)
 
     def check_camera(self, camera: str) -> None:
-        check_camera(camera, self.cameras)
+        from fetch.rendering import check_camera
+
+        check_camera(self.env.model, camera)
 
     def frame(self, state: np.ndarray, camera: str) -> np.ndarray:
         """The (H, W, 3) uint8 image of one state."""

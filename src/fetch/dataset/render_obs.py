@@ -77,9 +77,9 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
                              f"dataset has one image size, so use --size {layout.image_size}")
         if camera in layout.cameras and not overwrite:
             raise FetchError(f"{index} already has {schema.image_key(camera)}; pass --overwrite to render it again")
-        from fetch.dataset.frames import camera_names, check_camera
+        from fetch.dataset.frames import check_env_camera
 
-        check_camera(camera, camera_names(env_id, env_kwargs))  # before any work
+        check_env_camera(env_id, env_kwargs, camera)  # before any work
         start = time.perf_counter()
         frames = 0
         key = schema.image_key(camera)

@@ -17,6 +17,7 @@ from fetch.dataset import schema
 from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.writer import BackgroundWriter, DatasetWriter, Header, package_versions
 from fetch.errors import FetchError, UnknownNameError
+from fetch.rendering import check_camera
 from fetch.teleop.devices import DEVICES, Command, Device
 
 FORMATS = ("hdf5", "npz")
@@ -221,10 +222,8 @@ class Session:
         self.device = device
         self.display = display
         self.log = log or (lambda text: print(text, flush=True))
-        known = [self.base.model.camera(i).name for i in range(self.base.model.ncam)]
         for camera in config.cameras:
-            if camera not in known:
-                raise UnknownNameError("camera", camera, known)
+            check_camera(self.base.model, camera)
         self.saved_this_session = 0
         self.writer = open_writer(config, self.env, self._on_saved)
         if getattr(self.writer, "recovered", 0):

@@ -21,6 +21,7 @@ import mujoco.gl_context
 import numpy as np
 
 from fetch.errors import FetchError
+from fetch.rendering import camera_names
 from fetch.teleop.session import HudState
 
 CAMERAS = ("front", "side", "behind", "wrist")
@@ -191,7 +192,7 @@ class Viewer:
                              "a desktop session or `xvfb-run`")
         self.env = env.unwrapped
         model = self.env.model
-        self.cameras = [c for c in CAMERAS if c in {model.camera(i).name for i in range(model.ncam)}]
+        self.cameras = [c for c in CAMERAS if c in camera_names(model)]
         if camera not in self.cameras:
             raise FetchError(f"unknown camera {camera!r}; known: {', '.join(self.cameras)}")
         self.camera = camera
