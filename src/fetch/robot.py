@@ -76,6 +76,9 @@ class RobotConfig:
     """the classic `robot0:slide0/1` values: where the mobile base is parked."""
     start_height: float = 0.2
     """the classic `gripper_extra_height`: the start target is the classic offset plus this in z."""
+    start_shift_x: float = 0.0
+    """[m] added to the classic start's x: with `base_xy` moved by the opposite amount, the hand
+    starts at the same place in the room while the arm reaches further."""
     workspace_low: tuple[float, float, float] = (1.0, 0.35, 0.42)
     workspace_high: tuple[float, float, float] = (1.6, 1.15, 0.9)
     max_lead: float = 0.05
@@ -208,6 +211,7 @@ class Robot:
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)
         target = data.site_xpos[self.grip_site] + CLASSIC_START_OFFSET - self.grip_to_mocap
+        target[0] += self.config.start_shift_x
         target[2] += self.config.start_height
         return np.clip(target, self.low, self.high)
 
