@@ -8,9 +8,9 @@ import numpy as np
 from fetch.experts import Expert, make_expert
 
 SEEDS = range(100, 106)
-# Slide's expert is not yet reliable (about 65 % of episodes); it is held to what it does today
-# so that it cannot get worse unnoticed.
-MIN_SUCCESSES = {"Slide-v2": 3}
+# Slide's expert is not yet reliable (about 90 % of episodes): it may miss one of these seeds on
+# another mujoco version without having got worse.
+MIN_SUCCESSES = {"Slide-v2": 5}
 
 
 def test_make_expert_takes_an_env_or_an_id() -> None:

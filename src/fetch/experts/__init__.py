@@ -8,8 +8,9 @@ import gymnasium as gym
 
 from fetch.errors import FetchError
 from fetch.experts.base import Expert
-from fetch.experts.motion import Drawer, Push, Reach, Slide
+from fetch.experts.motion import Drawer, Push, Reach
 from fetch.experts.pick import Grasp, PickAndPlace
+from fetch.experts.slide import Slide
 from fetch.tasks import bin as bin_task
 from fetch.tasks import box as box_task
 

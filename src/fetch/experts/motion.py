@@ -1,4 +1,4 @@
-"""Experts that move the hand without grasping: reach, push, slide, and hook-and-pull for drawers."""
+"""Experts that move the hand without grasping: reach, push, and hook-and-pull for drawers."""
 
 from __future__ import annotations
 
@@ -7,8 +7,6 @@ from collections.abc import Mapping
 import numpy as np
 
 from fetch.experts.base import Expert
-from fetch.observation import CONTROL_DT
-from fetch.robot import ACTION_STEP
 
 
 class Reach(Expert):
@@ -68,58 +66,6 @@ class Push(Expert):
     def offset(self, direction: np.ndarray) -> np.ndarray:
         """[m] the object's centre minus the grip site's when pushing along `direction` (xy)."""
         return direction * self.behind
-
-
-class Slide(Push):
-    """Knock the puck towards the goal with aimed bumps, never faster than it can stop at the goal.
-
-    The hand, driven through a mocap target, surges and stops within each 40 ms step, so it
-    moves the puck by a series of bumps, each an impulse along the contact normal. The closed
-    fingers are a 2.7 x 3 cm rectangle: a face would push only along its own normal, so each
-    step the hand puts a corner behind the puck on the line from the goal through the puck's
-    centre and pushes through it. A puck gliding alone decelerates at a ~ mu g, and sqrt(2 a d)
-    is the speed at which it glides exactly the distance d left; the hand never pushes faster,
-    so where it must stop (the workspace ends at x = 1.5 m) the puck glides on to the goal.
-    """
-
-    radius = 0.025
-    """[m] the puck's radius."""
-    half = (0.0135, 0.0149)
-    """[m] the closed fingers' half extents (x, y) around the grip site."""
-    deceleration = 0.96
-    """[m/s^2] the puck's measured deceleration when gliding alone."""
-    full_speed = ACTION_STEP / CONTROL_DT
-    """[m/s] the hand's speed at |a| = 1."""
-    ramp = 0.12
-    """[m/s] how much faster the hand may push each step."""
-    short = 0.025
-    """[m] aim to stop the puck this far short of the goal: the last bump adds a little speed."""
-
-    def offset(self, direction: np.ndarray) -> np.ndarray:
-        corner = np.array([np.sign(direction[0]) * self.half[0], np.sign(direction[1]) * self.half[1]])
-        return direction * (self.radius + 0.003) + corner
-
-    def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
-        grip, obj, goal, dist, direction = self.line(obs)
-        velocity = (self.part(obs, "object_velp") + self.part(obs, "grip_velp"))[:2] / CONTROL_DT
-        moving = float(np.linalg.norm(velocity)) > 0.03
-        glide = max(float(velocity @ direction), 0.0) ** 2 / (2 * self.deceleration)
-        if dist < 0.02 or (moving and glide >= dist - self.short):
-            # It is there, or will glide there: keep the hand still, out of its way.
-            return np.append(self.move(grip, grip), -1.0)
-        if self.stage != "push":
-            if moving:  # let a gliding puck come to rest before lining up again
-                return np.append(self.move(grip, grip), -1.0)
-            return super().act(obs)
-        behind = obj[:2] - self.offset(direction)
-        if not moving and np.linalg.norm(grip[:2] - behind) > 0.03:
-            self.advance("over")  # the puck stopped short or off the line: line up again
-            return np.append(self.move(grip, grip), -1.0)
-        # Bumps leave the puck a little faster than the hand: push at 85 % of the profile.
-        profile = 0.85 * np.sqrt(2 * self.deceleration * max(dist - self.short, 0.0))
-        speed = min(self.full_speed, profile, self.ramp * (self.timer + 1))
-        target = np.array([*(behind + direction * speed * CONTROL_DT), obj[2]])
-        return np.clip(np.append(self.move(grip, target), -1.0), -1.0, 1.0)
 
 
 class Drawer(Expert):

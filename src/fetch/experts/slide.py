@@ -1,0 +1,180 @@
+"""The Slide expert: put the puck on the goal's line with a push along y, then push it along x.
+
+What it relies on (measured on Slide's table, friction 0.1):
+
+- A puck gliding alone decelerates at `DECELERATION`, so from speed v it slides v^2 / (2 a)
+  further. The hand can push it (at table height) only to x ~ 1.42 m; goals reach 1.69 m, so
+  the puck must be let go at the speed that carries it the rest of the way.
+- The closed fingers are a box, and a puck against a face rolls freely along it: a face pushes
+  the puck along the face's normal (to within a degree) whichever way the hand moves, and a
+  corner sends it 10-40 degrees off. So every push is along x or along y, with a face.
+- A slow push is robust (the puck stays on the fingers and stops within a centimetre when the
+  hand stops), a fast one is not: each push's speed follows the profile sqrt(2 a d) of the
+  distance d left, capped, so the puck never carries more speed than it needs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from fetch.experts.base import Expert
+from fetch.observation import CONTROL_DT
+
+DECELERATION = 0.98
+"""[m/s^2] a gliding puck's deceleration (friction 0.1 times g)."""
+RADIUS = 0.025
+"""[m] the puck's radius."""
+FACE = (0.0135, 0.0149)
+"""[m] the closed fingers' half extents along x and y around the grip site."""
+
+
+def glide(speed: float) -> float:
+    """[m] how far a puck moving at `speed` [m/s] slides before it stops."""
+    return max(speed, 0.0) ** 2 / (2.0 * DECELERATION)
+
+
+class Slide(Expert):
+    """Plan -> line up -> push -> watch, along y while the puck is off the goal's line, then x."""
+
+    aligned = 0.015
+    """[m] the puck counts as on the goal's line (y) within this."""
+    arrived = 0.025
+    """[m] no further push once the puck will rest this close to the goal."""
+    gap = 0.006
+    """[m] free space between the fingers and the puck before a push."""
+    hover = 0.06
+    """[m] how high above the puck's centre the hand crosses over it."""
+    close = 0.008
+    """[m] the hand counts as at the start of a push within this."""
+    at_rest = 0.03
+    """[m/s] a puck slower than this counts as stopped."""
+    ramp = 0.12
+    """[m/s] how much faster the push may get each step."""
+    slow = 0.45
+    """[m/s] the push's speed where the hand can follow the puck all the way."""
+    top_speed = 1.1
+    """[m/s] the fastest push."""
+    short = 0.015
+    """[m] the push aims to leave the puck this far short of the goal."""
+    profile = 0.8
+    """a push's speed as a fraction of the speed that would carry the puck just to the goal."""
+    feedback = 1.0
+    """[1] how much of the puck's speed error the hand's next step corrects."""
+    centred = 0.007
+    """[m] how far the puck may drift across the face before the hand follows it."""
+    reach = 1.40
+    """[m] the puck's centre x where a push along x must have let go (the arm's reach at table
+    height, less a margin: the hand slows as the arm stretches)."""
+
+    def reset(self) -> None:
+        super().reset()
+        self.axis = 0
+        self.sign = 1.0
+        self.speed = 0.0
+        self.line = 0.0
+        self.descending = False
+
+    def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+        grip = self.part(obs, "grip_pos")
+        puck = self.part(obs, "object_pos")
+        velocity = (self.part(obs, "object_velp") + self.part(obs, "grip_velp"))[:2] / CONTROL_DT
+        goal = np.asarray(obs["desired_goal"])
+        speed = float(np.linalg.norm(velocity))
+        rest = puck[:2] + velocity / max(speed, 1e-9) * glide(speed)
+        if self.stage == "watch" and self.timer < 2:
+            return self.act_xyz(self.move(grip, grip - self.direction() * 0.02))
+        if self.stage in ("start", "watch", "done"):
+            self.plan(rest, goal)
+        if self.stage == "done":
+            return self.act_xyz(np.zeros(3))
+        if self.stage == "line_up":
+            return self.line_up(grip, puck, rest, speed)
+        return self.push(grip, puck, goal, velocity)
+
+    def direction(self) -> np.ndarray:
+        unit = np.zeros(3)
+        unit[self.axis] = self.sign
+        return unit
+
+    def plan(self, rest: np.ndarray, goal: np.ndarray) -> None:
+        """Choose the next push from where the puck will come to rest."""
+        error = goal[:2] - rest
+        if np.linalg.norm(error) < self.arrived:
+            self.advance("done")
+            return
+        axis = 1 if abs(error[1]) > self.aligned else 0
+        sign = float(np.sign(error[axis]) or 1.0)
+        if self.stage != "line_up" or (axis, sign) != (self.axis, self.sign):
+            self.axis, self.sign = axis, sign
+            self.advance("line_up")
+
+    def behind(self, puck: np.ndarray) -> np.ndarray:
+        """[m] the grip site's start for a push of `puck` (world xyz)."""
+        return puck - self.direction() * (RADIUS + FACE[self.axis] + self.gap)
+
+    def line_up(self, grip: np.ndarray, puck: np.ndarray, rest: np.ndarray, speed: float) -> np.ndarray:
+        """To the start behind where the puck will rest (over it if it is in the way), then down
+        once the puck has stopped."""
+        start = self.behind(np.array([*rest, puck[2]]))
+        off = float(np.linalg.norm(grip[:2] - start[:2]))
+        if self.descending and off > 2 * self.close:
+            self.descending = False  # knocked off the start: go round again
+        if self.descending or (off < self.close and speed < self.at_rest):
+            self.descending = True
+            if abs(grip[2] - puck[2]) < 0.004:
+                self.speed, self.line, self.descending = 0.0, float(grip[1 - self.axis]), False
+                self.advance("push")
+            return self.act_xyz(self.move(grip, start))
+        high = puck[2] + self.hover
+        clear = _distance_to_segment(puck[:2], grip[:2], start[:2]) > RADIUS + 0.035
+        if clear and speed < self.at_rest:
+            return self.act_xyz(self.move(grip, start))
+        if grip[2] < high - 0.02:
+            # Low near the puck: rise first so the hand never sweeps across it.
+            return self.act_xyz(self.move(grip, np.array([*grip[:2], high])))
+        return self.act_xyz(self.move(grip, np.array([*start[:2], high])))
+
+    def push(self, grip: np.ndarray, puck: np.ndarray, goal: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Push with a face at the profile's speed; let go once the puck will glide far enough."""
+        unit = self.direction()
+        left = float((goal - puck)[self.axis]) * self.sign
+        along = float(velocity[self.axis]) * self.sign
+        if abs(float(puck[1 - self.axis]) - self.line) > FACE[1 - self.axis]:
+            self.advance("watch")  # the puck rolled off the fingers' face: plan again
+            return self.act_xyz(self.move(grip, grip - unit * 0.02))
+        # Let go a step early: the hand answers one step later, and the puck moves on meanwhile.
+        if left - glide(along) - along * CONTROL_DT <= self.short:
+            self.advance("watch")
+            return self.act_xyz(self.move(grip, grip - unit * 0.02))
+        # The speed that, let go where the hand must stop, carries the puck to the goal.
+        beyond = self.sign * (goal[0] - self.reach) - self.short if self.axis == 0 else 0.0
+        launch = np.sqrt(2.0 * DECELERATION * max(beyond, 0.0))
+        # Below the speed at which it would just glide to the goal (bumps leave it faster).
+        profile = self.profile * np.sqrt(2.0 * DECELERATION * max(left - self.short, 0.0))
+        self.speed = min(self.top_speed, max(self.slow, launch), profile, self.speed + self.ramp)
+        # The hand drives the puck a little faster than its target moves: correct by what it does.
+        drive = max(self.speed + self.feedback * (self.speed - along), 0.0) if along > 0.1 else self.speed
+        # From the puck's contact point (or the hand, if it lags), on the line the push started on.
+        contact = self.behind(puck) + unit * self.gap
+        lead = max(float((contact - grip) @ unit), 0.0)
+        target = grip + unit * (lead + drive * CONTROL_DT)
+        # Keep the puck on the middle half of the face: follow its drift across beyond that.
+        drift = float(puck[1 - self.axis]) - self.line
+        if abs(drift) > self.centred:
+            self.line += drift - np.sign(drift) * self.centred
+        target[1 - self.axis] = self.line
+        target[2] = puck[2]
+        return self.act_xyz(self.move(grip, target))
+
+    @staticmethod
+    def act_xyz(xyz: np.ndarray) -> np.ndarray:
+        return np.append(np.clip(xyz, -1.0, 1.0), -1.0)
+
+
+def _distance_to_segment(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """[m] the distance from `point` to the segment a-b (xy)."""
+    ab = b - a
+    t = float(np.clip((point - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0))
+    return float(np.linalg.norm(point - (a + t * ab)))
