@@ -54,8 +54,6 @@ class Slide(Expert):
     """[m/s] how much faster the push may get each step."""
     slow = 0.45
     """[m/s] the push's speed where the hand can follow the puck all the way."""
-    top_speed = 1.1
-    """[m/s] the fastest push."""
     short = 0.015
     """[m] the push aims to leave the puck this far short of the goal."""
     profile = 0.8
@@ -141,11 +139,10 @@ class Slide(Expert):
         unit = self.direction()
         left = float((goal - puck)[self.axis]) * self.sign
         along = float(velocity[self.axis]) * self.sign
-        if abs(float(puck[1 - self.axis]) - self.line) > FACE[1 - self.axis]:
-            self.advance("watch")  # the puck rolled off the fingers' face: plan again
-            return self.act_xyz(self.move(grip, grip - unit * 0.02))
-        # Let go a step early: the hand answers one step later, and the puck moves on meanwhile.
-        if left - glide(along) - along * CONTROL_DT <= self.short:
+        # Let go once the puck will glide far enough, a step early (the hand answers one step
+        # later and the puck moves on meanwhile), or if it rolled off the fingers' face.
+        rolled_off = abs(float(puck[1 - self.axis]) - self.line) > FACE[1 - self.axis]
+        if rolled_off or left - glide(along) - along * CONTROL_DT <= self.short:
             self.advance("watch")
             return self.act_xyz(self.move(grip, grip - unit * 0.02))
         # The speed that, let go where the hand must stop, carries the puck to the goal.
@@ -153,7 +150,7 @@ class Slide(Expert):
         launch = np.sqrt(2.0 * DECELERATION * max(beyond, 0.0))
         # Below the speed at which it would just glide to the goal (bumps leave it faster).
         profile = self.profile * np.sqrt(2.0 * DECELERATION * max(left - self.short, 0.0))
-        self.speed = min(self.top_speed, max(self.slow, launch), profile, self.speed + self.ramp)
+        self.speed = min(max(self.slow, launch), profile, self.speed + self.ramp)
         # The hand drives the puck a little faster than its target moves: correct by what it does.
         drive = max(self.speed + self.feedback * (self.speed - along), 0.0) if along > 0.1 else self.speed
         # From the puck's contact point (or the hand, if it lags), on the line the push started on.
