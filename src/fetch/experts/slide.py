@@ -11,6 +11,11 @@ What it relies on (measured on Slide's table, friction 0.1):
 - A slow push is robust (the puck stays on the fingers and stops within a centimetre when the
   hand stops), a fast one is not: each push's speed follows the profile sqrt(2 a d) of the
   distance d left, capped, so the puck never carries more speed than it needs.
+- The hand surges in the middle of each control step (the mocap target jumps once per step), so
+  a pushed puck leaves up to ~1.5 times faster than the hand's end-of-step speed: the profile is
+  scaled down, more along y, where an overshoot towards the table's side can strand the puck.
+- Under action noise, every extra push risks more than it gains: the expert stops once the puck
+  will rest within `arrived` of the goal, and pushes again only if it leaves `leave`.
 """
 
 from __future__ import annotations
@@ -38,10 +43,12 @@ def glide(speed: float) -> float:
 class Slide(Expert):
     """Plan -> line up -> push -> watch, along y while the puck is off the goal's line, then x."""
 
-    aligned = 0.015
+    aligned = 0.025
     """[m] the puck counts as on the goal's line (y) within this."""
-    arrived = 0.025
-    """[m] no further push once the puck will rest this close to the goal."""
+    arrived = 0.035
+    """[m] no further push once the puck will rest this close to the goal..."""
+    leave = 0.045
+    """[m] ...until something moves it further than this (a correction risks more than it gains)."""
     gap = 0.006
     """[m] free space between the fingers and the puck before a push."""
     hover = 0.06
@@ -50,18 +57,23 @@ class Slide(Expert):
     """[m] the hand counts as at the start of a push within this."""
     at_rest = 0.03
     """[m/s] a puck slower than this counts as stopped."""
-    ramp = 0.12
+    ramp = 0.08
     """[m/s] how much faster the push may get each step."""
-    slow = 0.45
-    """[m/s] the push's speed where the hand can follow the puck all the way."""
+    slow = (0.45, 0.25)
+    """[m/s] the push's speed (along x, y) where the hand can follow the puck all the way. Along y
+    it is lower: a y push that overshoots towards the table's side can leave the puck where the
+    hand cannot get round it."""
     short = 0.015
     """[m] the push aims to leave the puck this far short of the goal."""
-    profile = 0.8
-    """a push's speed as a fraction of the speed that would carry the puck just to the goal."""
+    profile = (0.7, 0.5)
+    """a push's speed (along x, y) as a fraction of the speed that would carry the puck just to the
+    goal. The puck leaves faster than the hand: the hand surges in the middle of each control step."""
     feedback = 1.0
     """[1] how much of the puck's speed error the hand's next step corrects."""
     centred = 0.007
     """[m] how far the puck may drift across the face before the hand follows it."""
+    stretch = 1.49
+    """[m] the furthest x where the hand gets down to the puck's height."""
     reach = 1.40
     """[m] the puck's centre x where a push along x must have let go (the arm's reach at table
     height, less a margin: the hand slows as the arm stretches)."""
@@ -73,6 +85,7 @@ class Slide(Expert):
         self.speed = 0.0
         self.line = 0.0
         self.descending = False
+        self.hold = np.zeros(3)
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         grip = self.part(obs, "grip_pos")
@@ -84,9 +97,9 @@ class Slide(Expert):
         if self.stage == "watch" and self.timer < 2:
             return self.act_xyz(self.move(grip, grip - self.direction() * 0.02))
         if self.stage in ("start", "watch", "done"):
-            self.plan(rest, goal)
+            self.plan(rest, goal, grip)
         if self.stage == "done":
-            return self.act_xyz(np.zeros(3))
+            return self.act_xyz(self.move(grip, self.hold))
         if self.stage == "line_up":
             return self.line_up(grip, puck, rest, speed)
         return self.push(grip, puck, goal, velocity)
@@ -96,17 +109,28 @@ class Slide(Expert):
         unit[self.axis] = self.sign
         return unit
 
-    def plan(self, rest: np.ndarray, goal: np.ndarray) -> None:
+    def plan(self, rest: np.ndarray, goal: np.ndarray, grip: np.ndarray) -> None:
         """Choose the next push from where the puck will come to rest."""
         error = goal[:2] - rest
-        if np.linalg.norm(error) < self.arrived:
-            self.advance("done")
+        if np.linalg.norm(error) < (self.leave if self.stage == "done" else self.arrived):
+            self.finish(grip, goal)
             return
         axis = 1 if abs(error[1]) > self.aligned else 0
         sign = float(np.sign(error[axis]) or 1.0)
         if self.stage != "line_up" or (axis, sign) != (self.axis, self.sign):
             self.axis, self.sign = axis, sign
+            if self.behind(np.array([*rest, goal[2]]))[0] > self.stretch:
+                # Out of the hand's reach at the puck's height: an attempt would only knock it.
+                self.finish(grip, goal)
+                return
             self.advance("line_up")
+
+    def finish(self, grip: np.ndarray, goal: np.ndarray) -> None:
+        """No more pushes: hold still, clear above the puck (zero actions would let action noise
+        walk the hand into it)."""
+        if self.stage != "done":
+            self.hold = np.array([*grip[:2], goal[2] + self.hover])
+            self.advance("done")
 
     def behind(self, puck: np.ndarray) -> np.ndarray:
         """[m] the grip site's start for a push of `puck` (world xyz)."""
@@ -149,8 +173,8 @@ class Slide(Expert):
         beyond = self.sign * (goal[0] - self.reach) - self.short if self.axis == 0 else 0.0
         launch = np.sqrt(2.0 * DECELERATION * max(beyond, 0.0))
         # Below the speed at which it would just glide to the goal (bumps leave it faster).
-        profile = self.profile * np.sqrt(2.0 * DECELERATION * max(left - self.short, 0.0))
-        self.speed = min(max(self.slow, launch), profile, self.speed + self.ramp)
+        profile = self.profile[self.axis] * np.sqrt(2.0 * DECELERATION * max(left - self.short, 0.0))
+        self.speed = min(max(self.slow[self.axis], launch), profile, self.speed + self.ramp)
         # The hand drives the puck a little faster than its target moves: correct by what it does.
         drive = max(self.speed + self.feedback * (self.speed - along), 0.0) if along > 0.1 else self.speed
         # From the puck's contact point (or the hand, if it lags), on the line the push started on.
