@@ -96,7 +96,9 @@ class Slide(Expert):
         rest = puck[:2] + velocity / max(speed, 1e-9) * glide(speed)
         if self.stage == "watch" and self.timer < 2:
             return self.act_xyz(self.move(grip, grip - self.direction() * 0.02))
-        if self.stage in ("start", "watch", "done"):
+        # Plan again until the hand comes down: a puck still gliding may stop elsewhere than
+        # predicted, or the hand may have nudged it on the way round.
+        if self.stage in ("start", "watch", "done") or (self.stage == "line_up" and not self.descending):
             self.plan(rest, goal, grip)
         if self.stage == "done":
             return self.act_xyz(self.move(grip, self.hold))
