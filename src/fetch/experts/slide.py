@@ -95,13 +95,13 @@ class Slide(Expert):
         speed = float(np.linalg.norm(velocity))
         rest = puck[:2] + velocity / max(speed, 1e-9) * glide(speed)
         if self.stage == "watch" and self.timer < 2:
-            return self.act_xyz(self.move(grip, grip - self.direction() * 0.02))
+            return self.toward(grip, grip - self.direction() * 0.02)
         # Plan again until the hand comes down: a puck still gliding may stop elsewhere than
         # predicted, or the hand may have nudged it on the way round.
         if self.stage in ("start", "watch", "done") or (self.stage == "line_up" and not self.descending):
             self.plan(rest, goal, grip)
         if self.stage == "done":
-            return self.act_xyz(self.move(grip, self.hold))
+            return self.toward(grip, self.hold)
         if self.stage == "line_up":
             return self.line_up(grip, puck, rest, speed)
         return self.push(grip, puck, goal, velocity)
@@ -150,15 +150,15 @@ class Slide(Expert):
             if abs(grip[2] - puck[2]) < 0.004:
                 self.speed, self.line, self.descending = 0.0, float(grip[1 - self.axis]), False
                 self.advance("push")
-            return self.act_xyz(self.move(grip, start))
+            return self.toward(grip, start)
         high = puck[2] + self.hover
         clear = _distance_to_segment(puck[:2], grip[:2], start[:2]) > RADIUS + 0.035
         if clear and speed < self.at_rest:
-            return self.act_xyz(self.move(grip, start))
+            return self.toward(grip, start)
         if grip[2] < high - 0.02:
             # Low near the puck: rise first so the hand never sweeps across it.
-            return self.act_xyz(self.move(grip, np.array([*grip[:2], high])))
-        return self.act_xyz(self.move(grip, np.array([*start[:2], high])))
+            return self.toward(grip, np.array([*grip[:2], high]))
+        return self.toward(grip, np.array([*start[:2], high]))
 
     def push(self, grip: np.ndarray, puck: np.ndarray, goal: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """Push with a face at the profile's speed; let go once the puck will glide far enough."""
@@ -170,7 +170,7 @@ class Slide(Expert):
         rolled_off = abs(float(puck[1 - self.axis]) - self.line) > FACE[1 - self.axis]
         if rolled_off or left - glide(along) - along * CONTROL_DT <= self.short:
             self.advance("watch")
-            return self.act_xyz(self.move(grip, grip - unit * 0.02))
+            return self.toward(grip, grip - unit * 0.02)
         # The speed that, let go where the hand must stop, carries the puck to the goal.
         beyond = self.sign * (goal[0] - self.reach) - self.short if self.axis == 0 else 0.0
         launch = np.sqrt(2.0 * DECELERATION * max(beyond, 0.0))
@@ -189,11 +189,11 @@ class Slide(Expert):
             self.line += drift - np.sign(drift) * self.centred
         target[1 - self.axis] = self.line
         target[2] = puck[2]
-        return self.act_xyz(self.move(grip, target))
+        return self.toward(grip, target)
 
-    @staticmethod
-    def act_xyz(xyz: np.ndarray) -> np.ndarray:
-        return np.append(np.clip(xyz, -1.0, 1.0), -1.0)
+    def toward(self, grip: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """The action moving the grip site towards `target`, fingers closed."""
+        return np.append(self.move(grip, target), -1.0)
 
 
 def _distance_to_segment(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
