@@ -8,7 +8,7 @@ import numpy as np
 from fetch.experts import Expert, make_expert
 
 SEEDS = range(100, 106)
-# Slide's expert solves about 95 % of episodes (not all): it may miss one of these seeds on
+# Slide's expert solves about 97 % of episodes (not all): it may miss one of these seeds on
 # another mujoco version without having got worse.
 MIN_SUCCESSES = {"Slide-v2": 5}
 
@@ -47,3 +47,24 @@ def test_expert_reads_only_the_observation() -> None:
         np.testing.assert_array_equal(act_a, act_b)
         obs_a = a.step(act_a)[0]
         obs_b = b.step(act_b)[0]
+
+
+
+def test_slide_pushes_with_one_fingertip_so_the_puck_never_wedges_between_the_fingers() -> None:
+    """Pushed at the slot between the fingertips, the puck wedged in, prised them apart and
+    tipped up 7-14 degrees on these seeds (mujoco 4.0); on one fingertip's face it stays flat."""
+    env = gym.make("Slide-v2")
+    expert = make_expert(env)
+    rot = env.unwrapped.observation_layout["object_rot"]
+    steepest = 0.0
+    for seed in (1, 7):
+        obs, _ = env.reset(seed=seed)
+        expert.reset()
+        done = False
+        while not done:
+            obs, _, terminated, truncated, _ = env.step(expert(obs))
+            done = terminated or truncated
+            if expert.stage == "push" and expert.axis == 0:
+                roll_pitch = obs["observation"][rot][:2]
+                steepest = max(steepest, float(np.degrees(np.max(np.abs(roll_pitch)))))
+    assert steepest < 3.0, f"the puck tipped {steepest:.1f} degrees during a push along x"

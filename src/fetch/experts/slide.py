@@ -8,6 +8,9 @@ What it relies on (measured on Slide's table, friction 0.1):
 - The closed fingers are a box, and a puck against a face rolls freely along it: a face pushes
   the puck along the face's normal (to within a degree) whichever way the hand moves, and a
   corner sends it 10-40 degrees off. So every push is along x or along y, with a face.
+- Along x that face is the two fingertips side by side, with a slot between them. A puck pushed
+  at the slot wedges into it: it prises the fingers ~8 mm apart, tilts up to 14 degrees and
+  leaves sideways. So an x push uses one fingertip's face, the hand offset by `FINGER` across.
 - A slow push is robust (the puck stays on the fingers and stops within a centimetre when the
   hand stops), a fast one is not: each push's speed follows the profile sqrt(2 a d) of the
   distance d left, capped, so the puck never carries more speed than it needs.
@@ -33,6 +36,8 @@ RADIUS = 0.025
 """[m] the puck's radius."""
 FACE = (0.0135, 0.0149)
 """[m] the closed fingers' half extents along x and y around the grip site."""
+FINGER = 0.0079
+"""[m] each fingertip's centre across the hand (y) from the grip site; each is 14 mm wide."""
 
 
 def glide(speed: float) -> float:
@@ -49,8 +54,11 @@ class Slide(Expert):
     """[m] no further push once the puck will rest this close to the goal..."""
     leave = 0.045
     """[m] ...until something moves it further than this (a correction risks more than it gains)."""
-    gap = 0.006
-    """[m] free space between the fingers and the puck before a push."""
+    gap = 0.012
+    """[m] free space between the fingers and the puck where the hand comes down: under action
+    noise the hand wanders a few mm a step, and a descending finger that touches the puck knocks it."""
+    catch = 0.004
+    """[m] how far a step the hand closes in on a puck at rest: the first touch is gentle."""
     hover = 0.06
     """[m] how high above the puck's centre the hand crosses over it."""
     close = 0.008
@@ -65,18 +73,24 @@ class Slide(Expert):
     hand cannot get round it."""
     short = 0.015
     """[m] the push aims to leave the puck this far short of the goal."""
-    profile = (0.7, 0.5)
+    profile = (0.5, 0.5)
     """a push's speed (along x, y) as a fraction of the speed that would carry the puck just to the
     goal. The puck leaves faster than the hand: the hand surges in the middle of each control step."""
     feedback = 1.0
     """[1] how much of the puck's speed error the hand's next step corrects."""
-    centred = 0.007
-    """[m] how far the puck may drift across the face before the hand follows it."""
+    centred = 0.003
+    """[m] how far the puck may drift across the face's middle before the hand follows it."""
+    rolled = (0.009, FACE[0])
+    """[m] the puck has rolled off the face (x push: one fingertip, y push: a finger's side) once
+    its centre is this far across from the face's middle."""
     stretch = 1.49
     """[m] the furthest x where the hand gets down to the puck's height."""
     reach = 1.40
-    """[m] the puck's centre x where a push along x must have let go (the arm's reach at table
+    """[m] the puck's centre x where a push along x should have let go (the arm's reach at table
     height, less a margin: the hand slows as the arm stretches)."""
+    limit = 1.61
+    """[m] the puck's centre x where the hand can push it no further (the grip site stops at
+    x ~ 1.57 m at table height)."""
 
     def reset(self) -> None:
         super().reset()
@@ -121,7 +135,7 @@ class Slide(Expert):
         sign = float(np.sign(error[axis]) or 1.0)
         if self.stage != "line_up" or (axis, sign) != (self.axis, self.sign):
             self.axis, self.sign = axis, sign
-            if self.behind(np.array([*rest, goal[2]]))[0] > self.stretch:
+            if self.behind(np.array([*rest, goal[2]]), self.gap)[0] > self.stretch:
                 # Out of the hand's reach at the puck's height: an attempt would only knock it.
                 self.finish(grip, goal)
                 return
@@ -134,14 +148,21 @@ class Slide(Expert):
             self.hold = np.array([*grip[:2], goal[2] + self.hover])
             self.advance("done")
 
-    def behind(self, puck: np.ndarray) -> np.ndarray:
-        """[m] the grip site's start for a push of `puck` (world xyz)."""
-        return puck - self.direction() * (RADIUS + FACE[self.axis] + self.gap)
+    def across(self) -> float:
+        """[m] where the face's middle lies across the push from the grip site: an x push uses the
+        fingertip at +y (the slot between the fingertips would catch the puck)."""
+        return FINGER if self.axis == 0 else 0.0
+
+    def behind(self, puck: np.ndarray, gap: float) -> np.ndarray:
+        """[m] where the grip site is when the face is `gap` behind `puck` (world xyz)."""
+        start = puck - self.direction() * (RADIUS + FACE[self.axis] + gap)
+        start[1 - self.axis] -= self.across()
+        return start
 
     def line_up(self, grip: np.ndarray, puck: np.ndarray, rest: np.ndarray, speed: float) -> np.ndarray:
         """To the start behind where the puck will rest (over it if it is in the way), then down
         once the puck has stopped."""
-        start = self.behind(np.array([*rest, puck[2]]))
+        start = self.behind(np.array([*rest, puck[2]]), self.gap)
         off = float(np.linalg.norm(grip[:2] - start[:2]))
         if self.descending and off > 2 * self.close:
             self.descending = False  # knocked off the start: go round again
@@ -167,7 +188,8 @@ class Slide(Expert):
         along = float(velocity[self.axis]) * self.sign
         # Let go once the puck will glide far enough, a step early (the hand answers one step
         # later and the puck moves on meanwhile), or if it rolled off the fingers' face.
-        rolled_off = abs(float(puck[1 - self.axis]) - self.line) > FACE[1 - self.axis]
+        drift = float(puck[1 - self.axis]) - self.line - self.across()
+        rolled_off = abs(drift) > self.rolled[self.axis]
         if rolled_off or left - glide(along) - along * CONTROL_DT <= self.short:
             self.advance("watch")
             return self.toward(grip, grip - unit * 0.02)
@@ -176,15 +198,18 @@ class Slide(Expert):
         launch = np.sqrt(2.0 * DECELERATION * max(beyond, 0.0))
         # Below the speed at which it would just glide to the goal (bumps leave it faster).
         profile = self.profile[self.axis] * np.sqrt(2.0 * DECELERATION * max(left - self.short, 0.0))
-        self.speed = min(max(self.slow[self.axis], launch), profile, self.speed + self.ramp)
+        # ...but never below the speed that carries it on from where the arm runs out.
+        last = self.sign * (goal[0] - self.limit) - self.short if self.axis == 0 else 0.0
+        floor = np.sqrt(2.0 * DECELERATION * max(last, 0.0))
+        self.speed = min(max(self.slow[self.axis], launch), max(profile, floor), self.speed + self.ramp)
         # The hand drives the puck a little faster than its target moves: correct by what it does.
         drive = max(self.speed + self.feedback * (self.speed - along), 0.0) if along > 0.1 else self.speed
         # From the puck's contact point (or the hand, if it lags), on the line the push started on.
-        contact = self.behind(puck) + unit * self.gap
-        lead = max(float((contact - grip) @ unit), 0.0)
+        lead = max(float((self.behind(puck, 0.0) - grip) @ unit), 0.0)
+        if along < self.at_rest:
+            lead = min(lead, self.catch)
         target = grip + unit * (lead + drive * CONTROL_DT)
-        # Keep the puck on the middle half of the face: follow its drift across beyond that.
-        drift = float(puck[1 - self.axis]) - self.line
+        # Keep the puck near the face's middle: follow its drift across beyond that.
         if abs(drift) > self.centred:
             self.line += drift - np.sign(drift) * self.centred
         target[1 - self.axis] = self.line
