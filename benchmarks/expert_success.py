@@ -12,13 +12,14 @@ import fetch
 from fetch.experts import make_expert
 
 
-def evaluate(env_id: str, seeds: int, noise: float) -> dict[str, float]:
-    """Run `seeds` episodes of the registered horizon; Gaussian action noise of std `noise`."""
+def evaluate(env_id: str, seeds: int, noise: float, first_seed: int = 0) -> dict[str, float]:
+    """Run `seeds` episodes of the registered horizon, from seed `first_seed` on; Gaussian action
+    noise of std `noise`."""
     env = gym.make(env_id)
     expert = make_expert(env)
     rng = np.random.default_rng(12345)
     finals, firsts = [], []
-    for seed in range(seeds):
+    for seed in range(first_seed, first_seed + seeds):
         obs, _ = env.reset(seed=seed)
         expert.reset()
         first, done, info = None, False, {}
@@ -46,18 +47,21 @@ def evaluate(env_id: str, seeds: int, noise: float) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--seeds", type=int, default=200)
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="start from this seed (e.g. 1000: seeds no expert was tuned on)")
     parser.add_argument("--noise", type=float, nargs="*", default=[0.0, 0.1],
                         help="action-noise stds to evaluate (0 = the plain expert)")
     parser.add_argument("--only", nargs="*", default=list(fetch.ENV_IDS))
     args = parser.parse_args()
     header = "| task | horizon | " + " | ".join(
         f"success (noise {n})" for n in args.noise) + " | first success: mean | p95 |"
-    print(f"{args.seeds} seeds per task; success = is_success at the last step of the horizon\n")
+    print(f"{args.seeds} seeds per task from seed {args.first_seed}; "
+          "success = is_success at the last step of the horizon\n")
     print(header)
     print("|" + "---|" * (header.count("|") - 1))
     for env_id in args.only:
         start = time.perf_counter()
-        results = [evaluate(env_id, args.seeds, n) for n in args.noise]
+        results = [evaluate(env_id, args.seeds, n, args.first_seed) for n in args.noise]
         plain = results[0]
         rates = " | ".join(f"{r['success']:.1%}" for r in results)
         print(f"| `{env_id}` | {plain['horizon']:.0f} | {rates} | {plain['first_mean']:.1f} | "
