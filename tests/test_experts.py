@@ -49,7 +49,6 @@ def test_expert_reads_only_the_observation() -> None:
         obs_b = b.step(act_b)[0]
 
 
-
 def test_slide_pushes_with_one_fingertip_so_the_puck_never_wedges_between_the_fingers() -> None:
     """Pushed at the slot between the fingertips, the puck wedged in, prised them apart and
     tipped up 7-14 degrees on these seeds (mujoco 4.0); on one fingertip's face it stays flat."""

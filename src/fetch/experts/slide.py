@@ -45,6 +45,11 @@ def glide(speed: float) -> float:
     return max(speed, 0.0) ** 2 / (2.0 * DECELERATION)
 
 
+def speed_to_glide(distance: float) -> float:
+    """[m/s] the speed at which a puck slides `distance` [m] before it stops (0 if distance <= 0)."""
+    return float(np.sqrt(2.0 * DECELERATION * max(distance, 0.0)))
+
+
 class Slide(Expert):
     """Plan -> line up -> push -> watch, along y while the puck is off the goal's line, then x."""
 
@@ -195,12 +200,12 @@ class Slide(Expert):
             return self.toward(grip, grip - unit * 0.02)
         # The speed that, let go where the hand must stop, carries the puck to the goal.
         beyond = self.sign * (goal[0] - self.reach) - self.short if self.axis == 0 else 0.0
-        launch = np.sqrt(2.0 * DECELERATION * max(beyond, 0.0))
+        launch = speed_to_glide(beyond)
         # Below the speed at which it would just glide to the goal (bumps leave it faster).
-        profile = self.profile[self.axis] * np.sqrt(2.0 * DECELERATION * max(left - self.short, 0.0))
+        profile = self.profile[self.axis] * speed_to_glide(left - self.short)
         # ...but never below the speed that carries it on from where the arm runs out.
         last = self.sign * (goal[0] - self.limit) - self.short if self.axis == 0 else 0.0
-        floor = np.sqrt(2.0 * DECELERATION * max(last, 0.0))
+        floor = speed_to_glide(last)
         self.speed = min(max(self.slow[self.axis], launch), max(profile, floor), self.speed + self.ramp)
         # The hand drives the puck a little faster than its target moves: correct by what it does.
         drive = max(self.speed + self.feedback * (self.speed - along), 0.0) if along > 0.1 else self.speed
