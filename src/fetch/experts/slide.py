@@ -77,7 +77,8 @@ class Slide(Expert):
     it is lower: a y push that overshoots towards the table's side can leave the puck where the
     hand cannot get round it."""
     short = 0.015
-    """[m] the push aims to leave the puck this far short of the goal."""
+    """[m] the push aims to leave the puck this far short of the goal (but for the line-up of a shot
+    beyond the hand's reach, which aims at the goal's line: see `push`)."""
     profile = (0.5, 0.5)
     """a push's speed (along x, y) as a fraction of the speed that would carry the puck just to the
     goal. The puck leaves faster than the hand: the hand surges in the middle of each control step."""
@@ -105,6 +106,7 @@ class Slide(Expert):
         self.line = 0.0
         self.descending = False
         self.hold = np.zeros(3)
+        self.y_pushes = 0  # pushes along y started this episode
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         grip = self.part(obs, "grip_pos")
@@ -176,6 +178,7 @@ class Slide(Expert):
             if abs(grip[2] - puck[2]) < 0.004:
                 self.speed, self.line, self.descending = 0.0, float(grip[1 - self.axis]), False
                 self.advance("push")
+                self.y_pushes += self.axis == 1
             return self.toward(grip, start)
         high = puck[2] + self.hover
         clear = _distance_to_segment(puck[:2], grip[:2], start[:2]) > RADIUS + 0.035
@@ -189,22 +192,29 @@ class Slide(Expert):
     def push(self, grip: np.ndarray, puck: np.ndarray, goal: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """Push with a face at the profile's speed; let go once the puck will glide far enough."""
         unit = self.direction()
+        short = self.short
+        if self.axis == 1 and self.y_pushes == 1 and goal[0] > self.stretch:
+            # Lining up a shot at a goal the hand cannot get down to: nothing corrects the line
+            # afterwards and the shot drifts across on its own, so aim at the line itself (a
+            # landing a little past it is still on it, within `aligned`). Not when correcting a
+            # line-up that missed: pushes that imprecise would ping-pong across the line.
+            short = 0.0
         left = float((goal - puck)[self.axis]) * self.sign
         along = float(velocity[self.axis]) * self.sign
         # Let go once the puck will glide far enough, a step early (the hand answers one step
         # later and the puck moves on meanwhile), or if it rolled off the fingers' face.
         drift = float(puck[1 - self.axis]) - self.line - self.across()
         rolled_off = abs(drift) > self.rolled[self.axis]
-        if rolled_off or left - glide(along) - along * CONTROL_DT <= self.short:
+        if rolled_off or left - glide(along) - along * CONTROL_DT <= short:
             self.advance("watch")
             return self.toward(grip, grip - unit * 0.02)
         # The speed that, let go where the hand must stop, carries the puck to the goal.
-        beyond = self.sign * (goal[0] - self.reach) - self.short if self.axis == 0 else 0.0
+        beyond = self.sign * (goal[0] - self.reach) - short if self.axis == 0 else 0.0
         launch = speed_to_glide(beyond)
         # Below the speed at which it would just glide to the goal (bumps leave it faster).
-        profile = self.profile[self.axis] * speed_to_glide(left - self.short)
+        profile = self.profile[self.axis] * speed_to_glide(left - short)
         # ...but never below the speed that carries it on from where the arm runs out.
-        last = self.sign * (goal[0] - self.limit) - self.short if self.axis == 0 else 0.0
+        last = self.sign * (goal[0] - self.limit) - short if self.axis == 0 else 0.0
         floor = speed_to_glide(last)
         self.speed = min(max(self.slow[self.axis], launch), max(profile, floor), self.speed + self.ramp)
         # The hand drives the puck a little faster than its target moves: correct by what it does.
