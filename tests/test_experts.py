@@ -71,8 +71,8 @@ def test_slide_pushes_with_one_fingertip_so_the_puck_never_wedges_between_the_fi
 
 def test_slide_lines_up_a_shot_past_the_hands_reach_on_the_goals_line() -> None:
     """A y push normally stops 1.5 cm short of its target; lining up a shot at a goal the hand
-    cannot reach it aims at the goal's line itself. Stopping short left these pucks 4-21 mm off
-    the line before the shot (mean 16 mm), and the shot's own drift took some out of the goal."""
+    cannot reach it aims at the goal's line itself. Stopping short left these pucks 11-21 mm off
+    the line before the shot (mean 16 mm, mujoco 4.0), and the shot's drift took some out of the goal."""
     env = gym.make("Slide-v2")
     expert = make_expert(env)
     puck = env.unwrapped.observation_layout["object_pos"]
@@ -82,8 +82,11 @@ def test_slide_lines_up_a_shot_past_the_hands_reach_on_the_goals_line() -> None:
         expert.reset()
         goal_y = float(obs["desired_goal"][1])
         assert obs["desired_goal"][0] > expert.stretch, f"seed {seed}: goal within the hand's reach"
-        while not (expert.stage == "push" and expert.axis == 0):
+        for _ in range(env.spec.max_episode_steps):
+            if expert.stage == "push" and expert.axis == 0:
+                break
             obs = env.step(expert(obs))[0]
+        assert expert.stage == "push" and expert.axis == 0, f"seed {seed}: no push along x in time"
         assert expert.y_pushes == 1, f"seed {seed}: {expert.y_pushes} pushes along y before the shot"
         misses.append(abs(float(obs["observation"][puck][1]) - goal_y))
     assert np.mean(misses) < 0.008, f"off the goal's line by {np.round(misses, 4)} m"
