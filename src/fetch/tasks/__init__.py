@@ -28,7 +28,7 @@ REGISTRATIONS: tuple[Registration, ...] = (
     Registration("Reach-v2", Reach, 50),
     Registration("Push-v2", Push, 50),
     Registration("PickPlace-v2", PickPlace, 50),
-    Registration("Slide-v2", Slide, 115),
+    Registration("Slide-v2", Slide, 50),
 )
 
 ENV_IDS: tuple[str, ...] = tuple(r.env_id for r in REGISTRATIONS)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import abc
 import math
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import mujoco
 import numpy as np
@@ -45,6 +45,15 @@ def object_parts(obj: str, site: str) -> tuple[ob.Part, ...]:
     )
 
 
+class Start(NamedTuple):
+    """What a task's reset samples around, fixed when the scene is compiled."""
+
+    grip: np.ndarray
+    """[m] the grip site at the start (the classic suite's `initial_gripper_xpos`)."""
+    object_z: float | None
+    """[m] the classic object tasks: the object's height at the start (their `height_offset`)."""
+
+
 class Task(abc.ABC):
     """One manipulation task: what it adds to the scene, how it starts, what success is.
 
@@ -69,7 +78,7 @@ class Task(abc.ABC):
 
     @abc.abstractmethod
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
-              grip_start: np.ndarray) -> np.ndarray:
+              start: Start) -> np.ndarray:
         """Place objects and furniture in `data` (positions only, at rest) and return the goal [m]."""
 
     def is_success(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:

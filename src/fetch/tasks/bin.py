@@ -11,6 +11,7 @@ from fetch.tasks.base import (
     DISTANCE_THRESHOLD,
     TABLE_TOP,
     FreeObject,
+    Start,
     Task,
     box_geom,
     goal_distance,
@@ -106,11 +107,11 @@ class BinPick(_BinTask):
     max_goal_height = 0.25
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
-              grip_start: np.ndarray) -> np.ndarray:
-        center = self.place_bin(data, rng, grip_start)
+              start: Start) -> np.ndarray:
+        center = self.place_bin(data, rng, start.grip)
         xy = center + rng.uniform(-self.spawn_range, self.spawn_range, size=2)
         self.block.place(data, np.array([xy[0], xy[1], REST_IN_BIN]))
-        goal_xy = outside_footprint(rng, grip_start, self.goal_range, center, BLOCK + 0.02)
+        goal_xy = outside_footprint(rng, start.grip, self.goal_range, center, BLOCK + 0.02)
         height = REST_ON_TABLE
         if rng.uniform() < 0.5:
             height += rng.uniform(0.0, self.max_goal_height)
@@ -128,9 +129,9 @@ class BinPlace(_BinTask):
     """[m] the goal around the bin's centre: a block there is >= 2.5 cm from every wall."""
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
-              grip_start: np.ndarray) -> np.ndarray:
-        center = self.place_bin(data, rng, grip_start)
-        xy = outside_footprint(rng, grip_start, self.spawn_range, center, BLOCK + 0.02)
+              start: Start) -> np.ndarray:
+        center = self.place_bin(data, rng, start.grip)
+        xy = outside_footprint(rng, start.grip, self.spawn_range, center, BLOCK + 0.02)
         self.block.place(data, np.array([xy[0], xy[1], REST_ON_TABLE]))
         goal_xy = center + rng.uniform(-self.goal_range, self.goal_range, size=2)
         return np.array([goal_xy[0], goal_xy[1], REST_IN_BIN])

@@ -9,7 +9,7 @@ import numpy as np
 
 from fetch import observation as ob
 from fetch.robot import RobotConfig
-from fetch.tasks.base import TABLE_TOP, FreeObject, Task, box_geom, mocap_index, object_parts
+from fetch.tasks.base import TABLE_TOP, FreeObject, Start, Task, box_geom, mocap_index, object_parts
 
 BOX = 0.08
 """[m] half the box's outer width (16 x 16 cm)."""
@@ -111,8 +111,8 @@ class BoxOpen(_BoxTask):
     name = "box_open"
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
-              grip_start: np.ndarray) -> np.ndarray:
-        center = self.place_box(data, rng, grip_start)
+              start: Start) -> np.ndarray:
+        center = self.place_box(data, rng, start.grip)
         self.lid.place(data, np.array([center[0], center[1], SEATED_Z]))
         return spot_beside(rng, center, _TABLE_LOW, _TABLE_HIGH)
 
@@ -128,8 +128,8 @@ class BoxClose(_BoxTask):
     success_rule = "lid seated: its centre within 2 cm (xy) of the box's axis and 1 cm of the seated height"
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
-              grip_start: np.ndarray) -> np.ndarray:
-        center = self.place_box(data, rng, grip_start)
+              start: Start) -> np.ndarray:
+        center = self.place_box(data, rng, start.grip)
         self.lid.place(data, spot_beside(rng, center, _TABLE_LOW, _TABLE_HIGH))
         return np.array([center[0], center[1], SEATED_Z])
 

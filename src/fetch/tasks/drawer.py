@@ -7,7 +7,7 @@ import numpy as np
 
 from fetch import observation as ob
 from fetch.robot import RobotConfig
-from fetch.tasks.base import GRIP, GRIPPER_PARTS, TABLE_TOP, Task, box_geom, mocap_index
+from fetch.tasks.base import GRIP, GRIPPER_PARTS, TABLE_TOP, Start, Task, box_geom, mocap_index
 
 SLIDE = 0.20
 """[m] the drawer's travel."""
@@ -85,9 +85,9 @@ class _DrawerTask(Task):
         self.slide_qvel = int(model.jnt_dofadr[joint])
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
-              grip_start: np.ndarray) -> np.ndarray:
+              start: Start) -> np.ndarray:
         x = rng.uniform(*self.cabinet_x)
-        y = grip_start[1] + rng.uniform(-self.cabinet_y, self.cabinet_y)
+        y = start.grip[1] + rng.uniform(-self.cabinet_y, self.cabinet_y)
         data.mocap_pos[self.cabinet_mocap] = (x, y, TABLE_TOP)
         data.qpos[self.slide_qpos] = self.start_opening
         data.qvel[self.slide_qvel] = 0.0
