@@ -225,8 +225,8 @@ def main() -> int:
           f"gym-fetch-v2 {fetch.__version__}; {args.rollouts} random rollouts of {STEPS} steps per task "
           "(+ full diagonal and full +x, each then back)\n")
     print("| ours | v4 | initial obs max diff | goal max diff | grip diff p50 / p95 / max [mm] | "
-          "object diff p50 / p95 / max [mm] | observation diff p50 / p95 / max | is_success agree | worst grip diff: diagonal / +x [mm] | "
-          "steps/s ours / v4 |")
+          "object diff p50 / p95 / max [mm] | observation diff p50 / p95 / max | is_success agree | "
+          "worst grip diff: diagonal / +x [mm] | steps/s ours / v4 |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for ours_id in args.only:
         r = compare(ours_id, PAIRS[ours_id], args.rollouts, args.first_seed)
