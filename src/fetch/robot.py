@@ -168,6 +168,10 @@ def _classic_spec(config: RobotConfig) -> mujoco.MjSpec:
     # Absolute asset paths, so the model's XML (stored in datasets) compiles from anywhere.
     spec.meshdir = str(assets / "stls" / "fetch")
     spec.texturedir = str(assets / "textures")
+    if hasattr(mujoco.mjtEnableBit, "mjENBL_MULTICCD"):
+        # mujoco 3.11, where v4 runs, finds several contacts between convex shapes by default;
+        # before (3.3) it finds one unless asked, and Slide's puck rocks and sinks ~7 mm.
+        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_MULTICCD)
     for geom in spec.geoms:
         if geom.name in _HIGH_LINKS + _IDLE_LINKS:
             geom.contype = 0
