@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import sys
 
-from fetch.cli import main
+from fetch.cli import collect_main
 
 if __name__ == "__main__":
-    raise SystemExit(main(["collect", *sys.argv[1:]]))
+    raise SystemExit(collect_main(sys.argv[1:], prog="collect_fetch_demo.py"))

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import pathlib
+import shutil
 import subprocess
 import sys
 
@@ -86,10 +88,9 @@ def test_minari_dataset_holds_the_demos_bit_for_bit(dataset: pathlib.Path, minar
 def test_recovered_env_reproduces_the_demos(dataset: pathlib.Path, minari_root: pathlib.Path) -> None:
     export_minari(dataset, "fetch/drawer-open/expert-v0")
     loaded = minari.load_dataset("fetch/drawer-open/expert-v0")
-    env = loaded.recover_environment(eval_env=True)
+    env = loaded.recover_environment()
     assert env.spec is not None and env.spec.id == ENV and env.spec.max_episode_steps == int(MAX_STEPS)
     assert env.spec.kwargs["reward_type"] == "sparse"
-    assert loaded.recover_environment().spec == env.spec
     seeds = [m["seed"] for m in loaded.storage.get_episode_metadata(range(loaded.total_episodes))]
     for episode, seed in zip(loaded.iterate_episodes(), seeds, strict=True):
         obs, _ = env.reset(seed=seed)
@@ -101,6 +102,45 @@ def test_recovered_env_reproduces_the_demos(dataset: pathlib.Path, minari_root: 
             for key, rows in episode.observations.items():
                 np.testing.assert_array_equal(obs[key], rows[t + 1])
     env.close()
+
+
+def test_the_eval_env_has_the_registered_horizon(dataset: pathlib.Path, minari_root: pathlib.Path) -> None:
+    """Evaluation runs the task as registered; the collection env keeps the collector's --max-steps."""
+    export_minari(dataset, "fetch/drawer-open/expert-v0", demos="all")
+    loaded = minari.load_dataset("fetch/drawer-open/expert-v0")
+    horizon = gym.spec(ENV).max_episode_steps
+    assert horizon is not None and horizon != int(MAX_STEPS)  # else this test could not fail
+    evaluation, collection = loaded.recover_environment(eval_env=True), loaded.recover_environment()
+    assert evaluation.spec is not None and collection.spec is not None
+    assert evaluation.spec.max_episode_steps == horizon and collection.spec.max_episode_steps == int(MAX_STEPS)
+    assert evaluation.spec == dataclasses.replace(collection.spec, max_episode_steps=horizon)  # same task otherwise
+    failed = loaded[3]  # the idle attempt ran to --max-steps; evaluation cuts it at the registered horizon
+    evaluation.reset(seed=next(loaded.storage.get_episode_metadata([3]))["seed"])
+    truncated = [evaluation.step(action)[3] for action in failed.actions[:horizon]]
+    assert truncated == [False] * (horizon - 1) + [True]
+    evaluation.close()
+    collection.close()
+
+
+def test_a_subset_export_has_its_own_default_id(dataset: pathlib.Path, minari_root: pathlib.Path,
+                                                 tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from fetch.dataset.edit import split
+
+    src = tmp_path / "demos"
+    shutil.copytree(dataset, src)
+    assert split(src, 0.3)["valid"] == 1
+    with open_dataset(src) as ds:
+        valid = ds.masks()["valid"]
+    assert main(["export", str(src), "--to", "minari"]) == 0
+    assert main(["export", str(src), "--to", "minari", "--demos", "valid"]) == 0
+    assert main(["export", str(src), "--to", "minari", "--demos", "all"]) == 0
+    out = capsys.readouterr().out
+    for dataset_id, demos in (("fetch/drawer-open/expert-v0", ["demo_0", "demo_1", "demo_2"]),
+                              ("fetch/drawer-open/expert-valid-v0", valid),
+                              ("fetch/drawer-open/mixed-all-v0", ["demo_0", "demo_1", "demo_2", "demo_3"])):
+        assert f"as Minari dataset {dataset_id} " in out
+        loaded = minari.load_dataset(dataset_id)
+        assert [m["demo"] for m in loaded.storage.get_episode_metadata(range(loaded.total_episodes))] == demos
 
 
 def test_a_fresh_process_recovers_the_env_without_importing_fetch(dataset: pathlib.Path,
@@ -205,10 +245,17 @@ def test_npz_export_refuses_a_directory_with_npz_files_unless_forced(dataset: pa
         assert json.loads(str(z["metadata_json"]))["demo"] == "demo_3"
 
 
-def test_images_are_exported_losslessly(tmp_path: pathlib.Path, minari_root: pathlib.Path) -> None:
-    src = tmp_path / "cams"
+@pytest.fixture(scope="module")
+def camera_dataset(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    """One expert Reach demo with the front camera's 32-pixel images."""
+    src = tmp_path_factory.mktemp("cams")
     assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "1", "--render", "none",
                  "--cameras", "front", "--image-size", "32", "--out", str(src)]) == 0
+    return src
+
+
+def test_images_are_exported_losslessly(camera_dataset: pathlib.Path, minari_root: pathlib.Path) -> None:
+    src = camera_dataset
     export_minari(src, "fetch/reach/cams-v0")
     loaded = minari.load_dataset("fetch/reach/cams-v0")
     space = loaded.observation_space
@@ -218,6 +265,32 @@ def test_images_are_exported_losslessly(tmp_path: pathlib.Path, minari_root: pat
     frames = loaded[0].observations["front_image"]
     assert frames.dtype == np.uint8 and frames.any()
     np.testing.assert_array_equal(frames, np.concatenate([a["obs/front_image"], a["next_obs/front_image"][-1:]]))
+
+
+def test_an_image_export_says_how_to_get_the_images_the_recovered_env_does_not_give(
+        camera_dataset: pathlib.Path, minari_root: pathlib.Path) -> None:
+    export_minari(camera_dataset, "fetch/reach/cams-v0")
+    loaded = minari.load_dataset("fetch/reach/cams-v0")
+    description = loaded.storage.metadata["description"]
+    recipe = "recover_environment(render_mode='rgb_array', width=32, height=32, camera_name='front')"
+    assert "state observations only" in description and "front_image" in description and recipe in description
+    episode, seed = loaded[0], next(loaded.storage.get_episode_metadata([0]))["seed"]
+    for eval_env in (False, True):  # both give the state keys, without a crash
+        env = loaded.recover_environment(eval_env=eval_env)
+        obs, _ = env.reset(seed=seed)
+        assert set(obs) == set(loaded.observation_space.keys()) - {"front_image"}
+        env.close()
+    env = loaded.recover_environment(render_mode="rgb_array", width=32, height=32, camera_name="front")
+    env.reset(seed=seed)
+    frames = [env.render()]
+    for action in episode.actions:
+        env.step(action)
+        frames.append(env.render())
+    env.close()
+    np.testing.assert_array_equal(np.stack(frames), episode.observations["front_image"])  # the recipe's images
+    export_minari(camera_dataset, "fetch/reach/cams-v0", description="Mine.", force=True)
+    description = minari.load_dataset("fetch/reach/cams-v0").storage.metadata["description"]
+    assert description.startswith("Mine.") and recipe in description  # the note follows a given description too
 
 
 def test_a_failed_export_leaves_the_previous_dataset_as_it_was(dataset: pathlib.Path, minari_root: pathlib.Path,

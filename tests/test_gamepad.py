@@ -218,10 +218,12 @@ def no_pad(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     pygame.quit()
 
 
-def test_no_pad_is_an_error_suggesting_the_keyboard(no_pad: None) -> None:
-    with pytest.raises(FetchError, match="--device keyboard") as e:
+def test_no_pad_is_an_error_naming_the_other_devices(no_pad: None) -> None:
+    with pytest.raises(FetchError, match="no gamepad found") as e:
         GamepadDevice()
-    assert "gym-fetch gamepad" in str(e.value)
+    for device in ("keyboard", "expert", "scripted"):
+        assert f"--device {device}" in str(e.value)
+    assert "gym-fetch gamepad" not in str(e.value)  # the live view helps with a pad, not without one
 
 
 def test_stick_and_triggers_drive_the_action(pad: vpad.VirtualPad) -> None:

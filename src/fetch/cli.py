@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -13,45 +14,62 @@ Command = Callable[[argparse.Namespace], int]
 def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     """The collector's flags: the seed script's (same names and meaning) plus ours."""
     from fetch.tasks import ENV_IDS
+    from fetch.teleop.devices import SCRIPT_FORMAT
 
-    p.add_argument("--env", default="Bin-pick-v2", metavar="ID", help=f"one of: {', '.join(ENV_IDS)}")
-    p.add_argument("--out", default="demos", help="output directory (resumed if it holds a matching dataset)")
-    p.add_argument("--episodes", type=int, default=0, help="demos to save in this session; 0: until you quit")
-    p.add_argument("--max-steps", type=int, default=500, help="steps per attempt (replaces the 50-step limit)")
-    p.add_argument("--seed", type=int, default=0, help="attempt k of the dataset resets with seed + k")
+    p.add_argument("--env", default="Bin-pick-v2", metavar="ID",
+                   help=f"the task (default Bin-pick-v2), one of: {', '.join(ENV_IDS)}")
+    p.add_argument("--out", default="demos",
+                   help="output directory (default demos; resumed if it holds a matching dataset)")
+    p.add_argument("--episodes", type=int, default=0, help="demos to save in this session (default 0: until you quit)")
+    p.add_argument("--max-steps", type=int, default=500,
+                   help="steps per attempt at most (default 500; replaces the 50-step training limit)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="attempt k of the dataset resets with seed + k (default 0; a whole number >= 0)")
     p.add_argument("--control-hz", type=float, default=None,
                    help="control rate [Hz]; default 25 (real time) with a person or a window, "
                         "as fast as possible for expert/scripted without a window; 0: as fast as possible")
-    p.add_argument("--success-hold-steps", type=int, default=10, help="success must hold this many steps")
+    p.add_argument("--success-hold-steps", type=int, default=10,
+                   help="steps success must hold before the attempt ends (default 10)")
     p.add_argument("--stop-on-success", action=argparse.BooleanOptionalAction, default=True,
                    help="end the attempt once success has held (default on)")
     p.add_argument("--ignore-env-done", dest="ignore_env_done", action="store_true", default=False,
                    help="keep going when the env reports terminated (never past --max-steps)")
     p.add_argument("--respect-env-done", dest="ignore_env_done", action="store_false",
                    help="end the attempt when the env reports terminated (default)")
-    p.add_argument("--keep-failures", action="store_true", help="also save failed attempts (in mask/failed)")
+    p.add_argument("--keep-failures", action="store_true",
+                   help="also save failed attempts (in mask/failed; default off)")
     p.add_argument("--render", default="auto", choices=["auto", "human", "rgb_array", "none"],
-                   help="auto: a window when there is a display; rgb_array (the seed's) is headless like none")
+                   help="auto (default): a window when there is a display; rgb_array (the seed's) is headless "
+                        "like none")
     p.add_argument("--device", default="gamepad", choices=["gamepad", "xbox", "keyboard", "scripted", "expert"],
-                   help="xbox is the seed's name for gamepad")
-    p.add_argument("--format", default="hdf5", choices=["hdf5", "npz"], help="npz: the seed's per-demo files")
-    p.add_argument("--reward-type", default="sparse", choices=["sparse", "dense"])
-    p.add_argument("--cameras", default="", help="record these cameras' images too, e.g. front,wrist")
-    p.add_argument("--image-size", type=int, default=84, help="recorded image size [px] (square)")
-    p.add_argument("--verbose", action="store_true", help="print how every attempt ended")
+                   help="what drives the arm (default gamepad; xbox is the seed's name for it). Without a display or a "
+                        "pad: expert or scripted")
+    p.add_argument("--format", default="hdf5", choices=["hdf5", "npz"],
+                   help="hdf5 (default): robomimic's layout, replayable; npz: the seed's per-demo files")
+    p.add_argument("--reward-type", default="sparse", choices=["sparse", "dense"],
+                   help="sparse (default): -1 until the goal is reached, then 0; dense: minus the distance [m]")
+    p.add_argument("--cameras", default="",
+                   help="record these cameras' images too, comma-separated (front, side, behind, wrist); default none")
+    p.add_argument("--image-size", type=int, default=84, help="recorded image width and height [px] (default 84)")
+    p.add_argument("--verbose", action="store_true", help="print how every attempt ended (default off)")
     g = p.add_argument_group("gamepad (the seed's flags; raw indices override the SDL layout)")
-    g.add_argument("--profile", default=None, help="a mapping profile written by `gym-fetch gamepad --calibrate`")
+    g.add_argument("--profile", default=None,
+                   help="a mapping profile written by `gym-fetch gamepad --calibrate` (default: none)")
     g.add_argument("--frame", default="camera", choices=["camera", "world"],
                    help="camera: stick 'up' moves away from the viewer; world: the seed's fixed mapping")
-    g.add_argument("--deadzone", type=float, default=0.10)
-    g.add_argument("--pos-scale", type=float, default=1.0)
-    g.add_argument("--invert-y", dest="invert_y", action="store_true", default=True)
-    g.add_argument("--no-invert-y", dest="invert_y", action="store_false")
-    g.add_argument("--gripper-open", type=float, default=1.0)
-    g.add_argument("--gripper-close", type=float, default=-1.0)
+    g.add_argument("--deadzone", type=float, default=0.10,
+                   help="stick deflection ignored around the centre, as a fraction of full travel (default 0.10)")
+    g.add_argument("--pos-scale", type=float, default=1.0,
+                   help="multiplies the stick's motion command; 1 (default) is full speed, 5 cm per step")
+    g.add_argument("--invert-y", dest="invert_y", action="store_true", default=True,
+                   help="stick up moves forward (SDL reports up as negative; default on, the seed's)")
+    g.add_argument("--no-invert-y", dest="invert_y", action="store_false", help="stick up moves backward")
+    g.add_argument("--gripper-open", type=float, default=1.0, help="a[3] sent to open the fingers (default 1.0)")
+    g.add_argument("--gripper-close", type=float, default=-1.0,
+                   help="a[3] sent to close the fingers (default -1.0)")
     for flag in ("--axis-lx", "--axis-ly", "--axis-lt", "--axis-rt", "--button-x", "--button-y", "--button-start"):
-        g.add_argument(flag, type=int, default=None, help="raw joystick index (overrides the SDL layout)")
-    p.add_argument("--scripted-json", default=None, help="JSON list of events for --device scripted")
+        g.add_argument(flag, type=int, default=None, help="raw joystick index (default: the SDL layout's)")
+    p.add_argument("--scripted-json", default=None, metavar="FILE", help=SCRIPT_FORMAT)
 
 
 def run_collect(args: argparse.Namespace) -> int:
@@ -66,6 +84,10 @@ def run_collect(args: argparse.Namespace) -> int:
 
 def run_info(args: argparse.Namespace) -> int:
     from fetch.dataset import open_dataset, summarize, validate
+    from fetch.dataset.npz import npz_files
+
+    if files := npz_files(args.file):
+        return _info_npz(args.file, files)
 
     with open_dataset(args.file) as ds:
         s = summarize(ds)
@@ -90,6 +112,35 @@ def run_info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _info_npz(path: str, files: list) -> int:
+    """`info` on the seed's per-demo files (`collect --format npz`)."""
+    from fetch.dataset.npz import load_npz, problems
+
+    demos = [load_npz(f) for f in files]
+    envs = sorted({str(d.metadata["env_id"]) for d in demos})
+    lengths = [d.steps for d in demos]
+    devices: dict[str, int] = {}
+    for d in demos:
+        devices[str(d.metadata.get("device", "?"))] = devices.get(str(d.metadata.get("device", "?")), 0) + 1
+    successful = sum(bool(d.metadata.get("successful", d.metadata.get("success", False))) for d in demos)
+    print(f"{path} (npz: the seed's per-demo files)\n  env         {', '.join(envs)}")
+    print(f"  demos       {len(demos)} ({successful} successful), {sum(lengths)} steps; length min {min(lengths)} "
+          f"mean {sum(lengths) / len(lengths):.1f} max {max(lengths)}")
+    print("  devices     " + ", ".join(f"{k} {v}" for k, v in sorted(devices.items())))
+    seeds = ", ".join(str(d.metadata["seed"]) for d in demos[:20])
+    print(f"  seeds       {seeds}" + (" ..." if len(demos) > 20 else ""))
+    found = [p for d in demos for p in problems(d)]
+    if len(envs) > 1:
+        found.append(f"the files are of {len(envs)} envs: {', '.join(envs)}")
+    if found:
+        print(f"INVALID: {len(found)} problem(s):")
+        for p in found[:50]:
+            print(f"  - {p}")
+        return 1
+    print("valid")
+    return 0
+
+
 def run_replay(args: argparse.Namespace) -> int:
     if args.video:
         status = run_video(args)
@@ -104,17 +155,27 @@ def run_video(args: argparse.Namespace) -> int:
     from fetch._progress import progress
     from fetch.dataset import open_dataset
     from fetch.dataset.frames import StateRenderer
+    from fetch.dataset.npz import load_npz, npz_files
     from fetch.dataset.video import check_video_path, write_video
 
     out = check_video_path(args.video, args.size, args.size)
-    with open_dataset(args.file) as ds:
-        names = ds.select(args.demo)
-        with StateRenderer(ds.env_id, ds.env_kwargs, args.size, args.size) as renderer:
+    with contextlib.ExitStack() as stack:
+        if files := npz_files(args.file):
+            if args.demo is not None:
+                files = [f for f in files if args.demo in (f.stem, f.name)] or _no_such_npz(args.demo, files)
+            demos = [load_npz(f) for f in files]
+            env_id, env_kwargs = str(demos[0].metadata["env_id"]), {}
+            states_of = {d.path.stem: d.arrays["states"] for d in demos}
+        else:
+            ds = stack.enter_context(open_dataset(args.file))
+            env_id, env_kwargs = ds.env_id, ds.env_kwargs
+            states_of = {name: ds.demo(name)["states"] for name in ds.select(args.demo)}
+        with StateRenderer(env_id, env_kwargs, args.size, args.size) as renderer:
             renderer.check_camera(args.camera)
             fps = args.fps or 1.0 / renderer.env.dt
-            for name in names:
-                path = out if len(names) == 1 else out.with_name(f"{out.stem}_{name}{out.suffix}")
-                states = ds.demo(name)["states"][()]
+            for name, saved in states_of.items():
+                path = out if len(states_of) == 1 else out.with_name(f"{out.stem}_{name}{out.suffix}")
+                states = saved[()]
                 frames = (renderer.frame(state, args.camera) for state in states)
                 count = write_video(path, progress(frames, len(states), f"video {name}", unit="frames"), fps,
                                     args.size, args.size)
@@ -123,30 +184,53 @@ def run_video(args: argparse.Namespace) -> int:
     return 0
 
 
+def _no_such_npz(demo: str, files: list) -> list:
+    from fetch.errors import FetchError
+
+    raise FetchError(f"no demo file {demo!r}; this directory has {', '.join(f.stem for f in files[:5])}"
+                     + (" ..." if len(files) > 5 else ""))
+
+
 def run_check(args: argparse.Namespace) -> int:
+    with contextlib.ExitStack() as stack:
+        return _check(args, stack)
+
+
+def _check(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
+    import gymnasium
+
     import fetch  # noqa: F401
     from fetch._progress import progress
     from fetch.dataset import open_dataset
+    from fetch.dataset.npz import check_npz, load_npz, npz_files
     from fetch.dataset.replay import check_demo, make_replay_env
 
-    failures = 0
-    largest: tuple[float, str] = (0.0, "")
-    with open_dataset(args.file) as ds:
+    if files := npz_files(args.file):
+        if args.demo is not None:
+            files = [f for f in files if args.demo in (f.stem, f.name)] or _no_such_npz(args.demo, files)
+        demos = [load_npz(f) for f in files]
+        env = gymnasium.make(str(demos[0].metadata["env_id"])).unwrapped
+        checks = (check_npz(d, env) for d in demos)
+        names = [d.path.name for d in demos]
+    else:
+        ds = stack.enter_context(open_dataset(args.file))
         names = ds.select(args.demo)
         env = make_replay_env(ds)
-        for name in progress(names, len(names), "replay"):
-            r = check_demo(ds, name, env)
-            ok = r.exact and r.success_recorded == r.success_replayed
-            failures += not ok
-            dev = r.largest
-            if dev.value >= largest[0]:
-                largest = (dev.value, f"{name} {dev.where}")
-            if not ok or args.verbose:
-                success = "" if r.success_recorded == r.success_replayed else \
-                    f"; success recorded {r.success_recorded}, replayed {r.success_replayed}"
-                print(f"{name}: {r.steps} steps, {'exact' if r.exact else 'DEVIATES'}; largest deviation "
-                      f"{dev.value:.3g} at {dev.where}{success}")
-        env.close()
+        checks = (check_demo(ds, name, env) for name in names)
+    failures = 0
+    largest: tuple[float, str] = (0.0, "")
+    for r in progress(checks, len(names), "replay"):
+        ok = r.exact and r.success_recorded == r.success_replayed
+        failures += not ok
+        dev = r.largest
+        if dev.value >= largest[0]:
+            largest = (dev.value, f"{r.name} {dev.where}")
+        if not ok or args.verbose:
+            success = "" if r.success_recorded == r.success_replayed else \
+                f"; success recorded {r.success_recorded}, replayed {r.success_replayed}"
+            verdict = "exact" if r.exact else f"DEVIATES; largest deviation {dev.value:.3g} at {dev.where}"
+            print(f"{r.name}: {r.steps} steps, {verdict}{success}")
+    env.close()
     print(f"replayed {len(names)} demo(s): {len(names) - failures} exact, {failures} deviating; largest "
           f"deviation {largest[0]:.3g}" + (f" ({largest[1]})" if largest[0] else ""))
     return 1 if failures else 0
@@ -189,14 +273,14 @@ def _parser() -> argparse.ArgumentParser:
     r = sub.add_parser("replay", help="re-simulate demos and compare them with what was recorded, or render "
                                       "them to video")
     r.add_argument("file")
-    r.add_argument("--demo", default=None, help="a demo index or name (default: all)")
+    r.add_argument("--demo", default=None, help="a demo index or name, e.g. 3 or demo_3 (default: all)")
     r.add_argument("--check", action="store_true",
                    help="compare observations and states bit for bit (what replay does without --video)")
     r.add_argument("--verbose", action="store_true", help="a line per demo, exact or not")
     r.add_argument("--video", default=None, metavar="OUT",
                    help="render the saved states to OUT (.mp4 or .gif), one frame per state; with several demos "
                         "one file each, named OUT_demo_<i>")
-    r.add_argument("--camera", default="front", help="the video's camera (default front)")
+    r.add_argument("--camera", default="front", help="the video's camera: front (default), side, behind or wrist")
     r.add_argument("--size", type=int, default=480, help="video width and height [px] (default 480)")
     r.add_argument("--fps", type=float, default=None, help="frames per second (default: the control rate, 25)")
     r.set_defaults(run=run_replay)
@@ -214,8 +298,8 @@ def _parser() -> argparse.ArgumentParser:
     m.set_defaults(run=run_merge)
     s = sub.add_parser("split", help="remake mask/train and mask/valid from the successful demos")
     s.add_argument("file")
-    s.add_argument("--valid", type=float, default=0.1, help="fraction of successful demos for validation")
-    s.add_argument("--seed", type=int, default=0, help="seed of the random assignment")
+    s.add_argument("--valid", type=float, default=0.1, help="fraction of successful demos for validation (default 0.1)")
+    s.add_argument("--seed", type=int, default=0, help="seed of the random assignment (default 0)")
     s.set_defaults(run=run_split)
     from fetch.dataset.export import add_export_parser  # minari is imported only when it runs
     from fetch.teleop.gamepad import add_gamepad_parser  # pygame is imported only when it runs
@@ -226,13 +310,25 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    return _run(_parser().parse_args(argv))
+
+
+def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_demo.py") -> int:
+    """`gym-fetch collect` under another name (the seed's script): its usage and errors say `prog`."""
+    p = argparse.ArgumentParser(prog=prog, description="Record demonstrations: the seed's collector, "
+                                "every flag with its meaning; the same as `gym-fetch collect`.")
+    add_collect_arguments(p)
+    p.set_defaults(run=run_collect, command="collect")
+    return _run(p.parse_args(argv), prog)
+
+
+def _run(args: argparse.Namespace, prog: str | None = None) -> int:
     from fetch.errors import FetchError
 
-    args = _parser().parse_args(argv)
     try:
         return int(args.run(args))
     except FetchError as e:
-        print(f"gym-fetch {args.command}: error: {e}", file=sys.stderr)
+        print(f"{prog or 'gym-fetch ' + args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

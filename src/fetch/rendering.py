@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-import sys
 import time
 from typing import Any
 
 import mujoco
 import numpy as np
 
+from fetch._gl import check_gl, has_display
 from fetch.errors import FetchError, UnknownNameError
 
 GOAL_GROUP = 2
@@ -40,6 +40,7 @@ class OffscreenRenderer:
         # The offscreen buffer must hold the image; this model is the env's own copy.
         model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
         model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
+        check_gl()
         try:
             self._renderer = mujoco.Renderer(model, height=height, width=width)
         except Exception as exc:  # the GL backend's own error types vary
@@ -74,7 +75,7 @@ class HumanViewer:
     """MuJoCo's passive viewer on a named camera, paced to real time."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, camera: str, hide_goal: bool) -> None:
-        if sys.platform == "linux" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        if not has_display():
             raise FetchError('render_mode="human" needs a display (none is set: DISPLAY is empty); '
                              'use render_mode="rgb_array", or run under Xvfb (xvfb-run python ...)')
         import mujoco.viewer

@@ -51,9 +51,9 @@ def select_demos(ds: Dataset, which: str) -> dict[str, dict[str, Any]]:
     return chosen
 
 
-def env_spec(ds: Dataset) -> Any:
-    """The Gymnasium `EnvSpec` the demos were recorded in: the registered id with the recorded
-    `env_kwargs` and the collector's step limit (`--max-steps`)."""
+def env_spec(ds: Dataset, *, evaluation: bool = False) -> Any:
+    """The Gymnasium `EnvSpec` of the demos' env: the registered id with the recorded `env_kwargs`
+    and the collector's step limit (`--max-steps`), or with `evaluation` the task's registered one."""
     import gymnasium as gym
 
     import fetch
@@ -62,15 +62,20 @@ def env_spec(ds: Dataset) -> Any:
         spec = gym.spec(ds.env_id)
     except gym.error.Error as e:
         raise UnknownNameError("env", ds.env_id, fetch.ENV_IDS) from e
-    limit = ds.settings.get("max_steps", spec.max_episode_steps)
+    limit = spec.max_episode_steps if evaluation else ds.settings.get("max_steps", spec.max_episode_steps)
     return dataclasses.replace(spec, kwargs={**spec.kwargs, **ds.env_kwargs},
                                max_episode_steps=None if limit is None else int(limit))
 
 
-def default_dataset_id(env_id: str, devices: list[str]) -> str:
-    """`fetch/<task>/<device>-v0`, e.g. `fetch/drawer-open/expert-v0` (`mixed` for several devices)."""
+def default_dataset_id(env_id: str, devices: list[str], demos: str = "successful") -> str:
+    """`fetch/<task>/<device>-v0`, e.g. `fetch/drawer-open/expert-v0` (`mixed` for several devices);
+    another `--demos` than the default is named too, e.g. `fetch/drawer-open/expert-valid-v0`."""
     task = env_id.rsplit("-v", 1)[0].lower()
-    return f"fetch/{task}/{devices[0] if len(devices) == 1 else 'mixed'}-v0"
+    name = devices[0] if len(devices) == 1 else "mixed"
+    if demos != "successful":
+        # A mask's name is the file's: whatever Minari's id syntax does not allow becomes '-'.
+        name += "-" + re.sub(r"[^-\w]+", "-", demos)
+    return f"fetch/{task}/{name}-v0"
 
 
 def _devices(demos: dict[str, dict[str, Any]]) -> list[str]:
@@ -100,8 +105,10 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
     Each episode holds T+1 observations for T actions (`obs` then the last `next_obs`), its reset
     seed, and `infos["is_success"]` (T+1 rows: the reset's, then each step's). Its last step is
     marked truncated unless the env terminated it, as Minari's own collector does. The env spec
-    (and the eval env spec) re-create the env the demos were recorded in. An existing dataset
-    of the same id is an error unless `force`; a failed export leaves no dataset behind.
+    re-creates the env the demos were recorded in; the eval env spec is that env with the task's
+    registered step limit. Recorded camera images are in the observations but not in a recovered
+    env's: the description says how to render them. An existing dataset of the same id is an error
+    unless `force`; a failed export leaves no dataset behind.
     """
     minari = _import_minari()
     import gymnasium as gym
@@ -109,7 +116,7 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
     with open_dataset(ds_path) as ds:
         chosen = select_demos(ds, demos)
         devices = _devices(chosen)
-        dataset_id = dataset_id or default_dataset_id(ds.env_id, devices)
+        dataset_id = dataset_id or default_dataset_id(ds.env_id, devices, demos)
         if not _DATASET_ID.match(dataset_id):
             raise FetchError(f"bad Minari dataset id {dataset_id!r}: it must read (namespace/)name-v<version> "
                              "with letters, digits, '-' and '_', e.g. fetch/drawer-open/expert-v0")
@@ -117,11 +124,15 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
         if target.exists() and not force:
             raise DatasetError(f"a Minari dataset {dataset_id!r} already exists at {target}; choose another id "
                                "(e.g. the next version, -v1) or pass --force to replace it")
-        spec = env_spec(ds)
+        # The collection env keeps --max-steps, as recorded: a kept failure ran to that limit and replays
+        # in it. The eval env has the task's registered limit, so that its scores compare with others'.
+        spec, eval_spec = env_spec(ds), env_spec(ds, evaluation=True)
+        description = description or (f"{len(chosen)} {ds.env_id} demonstrations ({', '.join(devices)}) "
+                                      f"recorded with gym-fetch-v2, exported from {ds.path.name}")
+        if ds.layout.cameras:
+            description = f"{description.rstrip().rstrip('.')}. {_images_note(ds.layout)}"
         metadata = {"algorithm_name": ", ".join(devices), "author": author, "author_email": author_email,
-                    "code_permalink": code_permalink,
-                    "description": description or (f"{len(chosen)} {ds.env_id} demonstrations ({', '.join(devices)})"
-                                                   f" recorded with gym-fetch-v2, exported from {ds.path.name}")}
+                    "code_permalink": code_permalink, "description": description}
         # A replaced dataset is set aside until the new one is complete, and put back if it fails.
         aside = target.with_name(f".{target.name}.replaced") if target.exists() else None
         env = gym.make(spec)
@@ -130,7 +141,7 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
                 shutil.rmtree(aside, ignore_errors=True)
                 target.rename(aside)
             try:
-                steps = _write_minari(minari, dataset_id, ds, chosen, env, spec, metadata)
+                steps = _write_minari(minari, dataset_id, ds, chosen, env, eval_spec, metadata)
             except BaseException:
                 shutil.rmtree(target, ignore_errors=True)
                 if aside is not None:
@@ -143,8 +154,8 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
     return Exported(path=target, demos=tuple(chosen), steps=steps)
 
 
-def _write_minari(minari: Any, dataset_id: str, ds: Dataset, chosen: dict[str, dict[str, Any]], env: Any, spec: Any,
-                  metadata: dict[str, Any]) -> int:
+def _write_minari(minari: Any, dataset_id: str, ds: Dataset, chosen: dict[str, dict[str, Any]], env: Any,
+                  eval_spec: Any, metadata: dict[str, Any]) -> int:
     """Create the Minari dataset and add the demos one at a time (the whole dataset never sits in
     memory: with images it would not fit); the steps written."""
     import fetch
@@ -154,7 +165,7 @@ def _write_minari(minari: Any, dataset_id: str, ds: Dataset, chosen: dict[str, d
         # Minari asks for each metadata field it was not given; leaving one out is a choice here.
         warnings.filterwarnings("ignore", message=r"`\w+` is set to None", category=UserWarning)
         dataset = minari.create_dataset_from_buffers(
-            dataset_id, [], env=env, eval_env=spec, action_space=env.action_space,
+            dataset_id, [], env=env, eval_env=eval_spec, action_space=env.action_space,
             observation_space=_observation_space(env.observation_space, ds.layout), data_format="hdf5",
             requirements=[f"gym-fetch-v2>={fetch.__version__}"], jpeg_encoding=False, **metadata)
     from minari.data_collector import EpisodeBuffer
@@ -178,6 +189,17 @@ def _observation_space(space: Any, layout: schema.Layout) -> Any:
     size = layout.image_size
     images = {schema.image_key(c): gym.spaces.Box(0, 255, (size, size, 3), np.uint8) for c in layout.cameras}
     return gym.spaces.Dict({**space.spaces, **images})
+
+
+def _images_note(layout: schema.Layout) -> str:
+    """The description's sentence on the recorded images, which a recovered env does not observe."""
+    size = layout.image_size
+    keys = ", ".join(schema.image_key(c) for c in layout.cameras)
+    # The env renders with the renderer and settings the collector used: the images are the same.
+    recipes = "; ".join(f"recover_environment(render_mode='rgb_array', width={size}, height={size}, "
+                        f"camera_name='{c}') gives {schema.image_key(c)} as env.render() after reset and each step"
+                        for c in layout.cameras)
+    return f"The recovered env gives state observations only, not {keys}: {recipes}."
 
 
 def _episode(arrays: dict[str, np.ndarray], attrs: dict[str, Any], env: Any) -> dict[str, Any]:
@@ -243,9 +265,11 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[
     """The `export` subcommand."""
     p = sub.add_parser("export", help="write a dataset as a Minari dataset or as the seed's per-demo npz files")
     p.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
-    p.add_argument("--to", required=True, choices=FORMATS)
+    p.add_argument("--to", required=True, choices=FORMATS,
+                   help="minari: a local Minari dataset; npz: the files `collect --format npz` writes")
     p.add_argument("--dataset-id", default=None, metavar="ID",
-                   help="minari: (namespace/)name-v<version>, default fetch/<task>/<device>-v0; it is written "
+                   help="minari: (namespace/)name-v<version>, default fetch/<task>/<device>-v0 (with --demos other "
+                        "than successful: fetch/<task>/<device>-<demos>-v0); it is written "
                         "under $MINARI_DATASETS_PATH (default ~/.minari/datasets)")
     p.add_argument("--out", default=None, metavar="DIR", help="npz: the directory for the files")
     p.add_argument("--demos", default="successful", metavar="WHICH",
@@ -253,9 +277,10 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--force", action="store_true",
                    help="replace a Minari dataset of the same id; write npz files into a directory that has some")
     g = p.add_argument_group("minari metadata")
-    g.add_argument("--author", default=None)
-    g.add_argument("--author-email", default=None)
-    g.add_argument("--code-permalink", default=None)
+    g.add_argument("--author", default=None, help="the dataset's author (default: none)")
+    g.add_argument("--author-email", default=None, help="the author's e-mail address (default: none)")
+    g.add_argument("--code-permalink", default=None,
+                   help="a link to the code that made the data (default: none)")
     g.add_argument("--description", default=None, help="default: what the demos are and where they came from")
     p.set_defaults(run=run_export)
 

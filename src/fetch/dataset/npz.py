@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import os
@@ -14,7 +15,9 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset.episode import Demo
+from fetch.dataset.replay import Deviation, ReplayCheck, largest_difference
 from fetch.dataset.writer import BackgroundWriter, atomic_write
+from fetch.errors import DatasetError
 
 _NUMBER = re.compile(r"_ep(\d+)_")
 
@@ -88,3 +91,89 @@ class NpzWriter(BackgroundWriter):
 def _jsonable(value: Any) -> Any:
     return value.item() if isinstance(value, np.generic) else value
 
+
+
+# -- reading: `gym-fetch info` and `replay --check` on a directory of the seed's files --------------
+
+
+@dataclasses.dataclass(frozen=True)
+class NpzDemo:
+    """One `.npz` file: its metadata and arrays (`action`, `states`, `obs__<key>`, ...)."""
+
+    path: pathlib.Path
+    metadata: dict[str, Any]
+    arrays: dict[str, np.ndarray]
+
+    @property
+    def steps(self) -> int:
+        return int(len(self.arrays["action"]))
+
+
+def npz_files(path: str | os.PathLike[str]) -> list[pathlib.Path]:
+    """The seed-format files a path names: a directory's `*_ep<NNNN>_*.npz` files in order, or one `.npz`
+    file; [] when there are none (an HDF5 dataset, or nothing)."""
+    p = pathlib.Path(path)
+    if p.is_file():
+        return [p] if p.suffix == ".npz" else []
+    if not p.is_dir() or (p / "demos.hdf5").exists():
+        return []
+    return sorted((f for f in p.glob("*.npz") if _NUMBER.search(f.name)),
+                  key=lambda f: int(_NUMBER.search(f.name).group(1)))  # type: ignore[union-attr]
+
+
+def load_npz(path: pathlib.Path) -> NpzDemo:
+    """Read one file; DatasetError naming it if it is not a readable seed-format demo."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            arrays = {k: f[k] for k in f.files}
+        metadata = json.loads(str(arrays.pop("metadata_json")))
+    except (OSError, ValueError, KeyError) as e:
+        raise DatasetError(f"{path}: not a readable demo file of `collect --format npz` ({e})") from e
+    missing = [k for k in ("action", "states", "info_json") if k not in arrays]
+    missing += [k for k in ("env_id", "seed") if k not in metadata]
+    if missing:
+        raise DatasetError(f"{path}: lacks {', '.join(missing)}; files written before states were added to the "
+                           "npz format cannot be replayed (record with the default --format hdf5 for that)")
+    return NpzDemo(path, metadata, arrays)
+
+
+def problems(demo: NpzDemo) -> list[str]:
+    """What is inconsistent in one file (empty if nothing)."""
+    a, t, out = demo.arrays, demo.steps, []
+    if a["action"].ndim != 2 or a["action"].shape[1:] != (4,):
+        out.append(f"{demo.path.name}: action has shape {a['action'].shape}, expected (T, 4)")
+    elif not np.isfinite(a["action"]).all():
+        out.append(f"{demo.path.name}: action holds NaN or infinite values")
+    for key, value in a.items():
+        if (key.startswith("obs__") or key == "states") and len(value) != t + 1:
+            out.append(f"{demo.path.name}: {key} has {len(value)} rows, expected T+1 = {t + 1}")
+    return out
+
+
+def check_npz(demo: NpzDemo, env: Any) -> ReplayCheck:
+    """Replay one file as `replay --check` does an HDF5 demo: reset with its seed (compared with its
+    first observation and state), restore its first state, apply its actions, compare every
+    observation and state."""
+    a = demo.arrays
+    keys = [k[len("obs__"):] for k in a if k.startswith("obs__")]
+    states, actions = a["states"], a["action"]
+    obs, _ = env.reset(seed=int(demo.metadata["seed"]))
+    reset = max([largest_difference(env.get_state()[None], states[:1], "states")]
+                + [largest_difference(obs[k][None], a[f"obs__{k}"][:1], f"obs/{k}") for k in keys],
+                key=lambda d: d.value)
+    env.set_state(states[0])
+    replayed = {k: np.empty_like(a[f"obs__{k}"][1:]) for k in keys}
+    replayed_states = np.empty_like(states[1:])
+    success = False
+    for i, action in enumerate(actions):
+        obs, _, _, _, info = env.step(action)
+        for k in keys:
+            replayed[k][i] = obs[k]
+        env.get_state(out=replayed_states[i])
+        success = success or info["is_success"] >= 1.0
+    observations = max((largest_difference(replayed[k], a[f"obs__{k}"][1:], f"next_obs/{k}") for k in keys),
+                       key=lambda d: d.value, default=Deviation(0.0, "next_obs"))
+    recorded = any(float(i.get("is_success", 0.0)) >= 1.0 for i in json.loads(str(a["info_json"])))
+    return ReplayCheck(name=demo.path.name, steps=len(actions), reset=reset, observations=observations,
+                       states=largest_difference(replayed_states, states[1:], "states", row_offset=1),
+                       success_recorded=recorded, success_replayed=success)

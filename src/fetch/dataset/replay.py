@@ -48,7 +48,8 @@ def make_replay_env(ds: Dataset) -> Any:
     return gym.make(ds.env_id, **ds.env_kwargs).unwrapped
 
 
-def _largest(replayed: np.ndarray, recorded: np.ndarray, label: str, row_offset: int = 0) -> Deviation:
+def largest_difference(replayed: np.ndarray, recorded: np.ndarray, label: str, row_offset: int = 0) -> Deviation:
+    """The largest absolute difference (NaN counts as infinite) and its `label[row, column]`."""
     if replayed.size == 0:
         return Deviation(0.0, label)
     diff = np.abs(replayed - recorded)
@@ -73,8 +74,8 @@ def check_demo(ds: Dataset, name: str, env: Any | None = None) -> ReplayCheck:
 
     obs, _ = env.reset(seed=seed)
     start = env.get_state()
-    reset_devs = [_largest(start[None], states[:1], "states")]
-    reset_devs += [_largest(obs[k][None], first[k], f"obs/{k}") for k in keys if len(first[k])]
+    reset_devs = [largest_difference(start[None], states[:1], "states")]
+    reset_devs += [largest_difference(obs[k][None], first[k], f"obs/{k}") for k in keys if len(first[k])]
     reset = max(reset_devs, key=lambda d: d.value)
 
     env.set_state(states[0])
@@ -87,8 +88,8 @@ def check_demo(ds: Dataset, name: str, env: Any | None = None) -> ReplayCheck:
             replayed[k][i] = obs[k]
         env.get_state(out=replayed_states[i])
         success = success or info["is_success"] >= 1.0
-    observations = max((_largest(replayed[k], recorded_next[k], f"next_obs/{k}") for k in keys),
+    observations = max((largest_difference(replayed[k], recorded_next[k], f"next_obs/{k}") for k in keys),
                        key=lambda d: d.value, default=Deviation(0.0, "next_obs"))
     return ReplayCheck(name=name, steps=t, reset=reset, observations=observations,
-                       states=_largest(replayed_states, states[1:], "states", row_offset=1),
+                       states=largest_difference(replayed_states, states[1:], "states", row_offset=1),
                        success_recorded=bool(group["is_success"][()].any()), success_replayed=success)

@@ -8,7 +8,14 @@ import sys
 from typing import Any
 
 from fetch.errors import FetchError
-from fetch.teleop.devices import Device, ExpertDevice, ScriptedDevice, default_script, load_script
+from fetch.teleop.devices import (
+    Device,
+    ExpertDevice,
+    ScriptedDevice,
+    builtin_notice,
+    default_script,
+    load_script,
+)
 from fetch.teleop.session import CollectConfig, Display, Session, make_env
 
 
@@ -34,7 +41,14 @@ def make_device(config: CollectConfig, args: argparse.Namespace, env: Any, viewe
     if config.device == "expert":
         return ExpertDevice(env)
     if config.device == "scripted":
-        return ScriptedDevice(load_script(args.scripted_json) if args.scripted_json else default_script())
+        if args.scripted_json:
+            events = load_script(args.scripted_json)
+            print(f"scripted: {len(events)} events from {args.scripted_json}, one per control tick; the list runs "
+                  "on across attempts and the session quits when it runs out", file=sys.stderr)
+        else:
+            events = default_script()
+            print(builtin_notice(config.keep_failures, config.max_steps), file=sys.stderr)
+        return ScriptedDevice(events, log=lambda text: print(text, flush=True))
     yaw = viewer.yaw if viewer is not None and getattr(args, "frame", "camera") == "camera" else None
     if config.device == "keyboard":
         if viewer is None:

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from fetch._gl import has_display
 from fetch.errors import FetchError, UnknownNameError
 from fetch.teleop.devices import Command, idle, rotate
 
@@ -47,8 +48,12 @@ OPTIONAL_CONTROLS = ("precision", "camera", "finish")
 
 TRIGGER_RANGES = ("auto", "0..1", "-1..1")
 DISCONNECTED = "pad disconnected: plug it back in"
-NO_PAD = ("no gamepad found: connect one (USB or Bluetooth) and try again, test it with `gym-fetch gamepad`, "
-          "or collect with --device keyboard")
+NO_PAD = ("no gamepad found: connect one (USB or Bluetooth) and try again, or collect with --device keyboard "
+          "(keys in the viewer window), --device expert or --device scripted")
+NO_PAD_HEADLESS = ("no gamepad found, and no display: connect a pad (USB or Bluetooth) and try again, or collect "
+                   "with a device that works headless: --device expert (the task's scripted expert) or --device "
+                   "scripted (events from --scripted-json); --device keyboard needs a display (it reads keys in "
+                   "the viewer window; on a server, run under xvfb-run)")
 _PROFILE_FORMAT = "gym-fetch gamepad profile"
 _SCALARS = ("deadzone", "pos_scale", "invert_y", "gripper_open", "gripper_close", "precision_scale", "trigger_range")
 
@@ -323,24 +328,30 @@ class _Pad:
         self._count = -1
         self.problem = ""
         if not self._open():
-            raise FetchError(self.problem or NO_PAD)
+            self.close()
+            raise FetchError(self.problem or (NO_PAD if has_display() else NO_PAD_HEADLESS))
 
     def _init_pygame(self) -> None:
         pygame = self.pygame
         self._started = [m for m in (pygame.joystick, self.sdl_controller) if not m.get_init()]
-        if not pygame.display.get_init():  # pygame reads pad events only with the video subsystem up
+        # pygame reads pad events only with the video subsystem up. With no display, SDL's dummy video
+        # driver at once: probing the others has libwayland-client print "error: XDG_RUNTIME_DIR is
+        # invalid or not set in the environment." to stderr before any message of ours.
+        if not pygame.display.get_init() and (has_display() or os.environ.get("SDL_VIDEODRIVER")):
             try:
                 pygame.display.init()
             except pygame.error:
-                previous = os.environ.get("SDL_VIDEODRIVER")
-                os.environ["SDL_VIDEODRIVER"] = "dummy"  # no display at all: a headless session
-                try:
-                    pygame.display.init()
-                finally:
-                    if previous is None:
-                        del os.environ["SDL_VIDEODRIVER"]
-                    else:
-                        os.environ["SDL_VIDEODRIVER"] = previous
+                pass
+        if not pygame.display.get_init():
+            previous = os.environ.get("SDL_VIDEODRIVER")
+            os.environ["SDL_VIDEODRIVER"] = "dummy"  # a headless session: for this init only
+            try:
+                pygame.display.init()
+            finally:
+                if previous is None:
+                    del os.environ["SDL_VIDEODRIVER"]
+                else:
+                    os.environ["SDL_VIDEODRIVER"] = previous
         pygame.joystick.init()
         self.sdl_controller.init()
         pygame.event.pump()
@@ -513,14 +524,18 @@ def legend(config: GamepadConfig) -> list[str]:
 def add_gamepad_arguments(p: argparse.ArgumentParser | Any) -> None:
     """The seed's gamepad flags (same names and meaning) plus --profile and --precision-scale."""
     p.add_argument("--profile", default=None, help="a mapping profile written by `gym-fetch gamepad --calibrate`")
-    p.add_argument("--deadzone", type=float, default=0.10, help="radial dead zone of the left stick")
-    p.add_argument("--pos-scale", type=float, default=1.0, help="motion scale")
-    p.add_argument("--precision-scale", type=float, default=0.3, help="motion scale while precision is held")
+    p.add_argument("--deadzone", type=float, default=0.10,
+                   help="radial dead zone of the left stick, a fraction of full travel (default 0.10)")
+    p.add_argument("--pos-scale", type=float, default=1.0,
+                   help="multiplies the stick's motion command (default 1.0: full speed)")
+    p.add_argument("--precision-scale", type=float, default=0.3,
+                   help="motion scale while precision (RB) is held (default 0.3)")
     p.add_argument("--invert-y", dest="invert_y", action="store_true", default=True,
                    help="stick up gives +y (default)")
-    p.add_argument("--no-invert-y", dest="invert_y", action="store_false")
-    p.add_argument("--gripper-open", type=float, default=1.0)
-    p.add_argument("--gripper-close", type=float, default=-1.0)
+    p.add_argument("--no-invert-y", dest="invert_y", action="store_false", help="stick up moves backward")
+    p.add_argument("--gripper-open", type=float, default=1.0, help="a[3] sent to open the fingers (default 1.0)")
+    p.add_argument("--gripper-close", type=float, default=-1.0,
+                   help="a[3] sent to close the fingers (default -1.0)")
     for flag in ("--axis-lx", "--axis-ly", "--axis-lt", "--axis-rt", "--button-x", "--button-y", "--button-start"):
         p.add_argument(flag, type=int, default=None, help="raw joystick index (overrides the SDL layout)")
 
@@ -530,7 +545,8 @@ def add_gamepad_parser(subparsers: Any) -> argparse.ArgumentParser:
     p: argparse.ArgumentParser = subparsers.add_parser(
         "gamepad", help="show what the pad sends (axes, buttons, the action), or calibrate it (--calibrate)")
     add_gamepad_arguments(p)
-    p.add_argument("--seconds", type=float, default=0.0, help="stop after this long [s]; 0: until START or Ctrl-C")
+    p.add_argument("--seconds", type=float, default=0.0,
+                   help="stop after this long [s] (default 0: until START or Ctrl-C)")
     p.add_argument("--calibrate", action="store_true", help="guided mapping of each control; needs --out")
     p.add_argument("--out", default=None, help="the profile file --calibrate writes (JSON)")
     p.set_defaults(run=run_gamepad_tool)

@@ -20,6 +20,7 @@ import mujoco
 import mujoco.gl_context
 import numpy as np
 
+from fetch._gl import check_gl
 from fetch.errors import FetchError
 from fetch.rendering import camera_names
 from fetch.teleop.session import HudState
@@ -190,6 +191,7 @@ class Viewer:
                 and os.environ.get("SDL_VIDEODRIVER") not in ("dummy", "offscreen"):
             raise FetchError("no display for the viewer window; use --render none (headless), or run under "
                              "a desktop session or `xvfb-run`")
+        check_gl()
         self.env = env.unwrapped
         model = self.env.model
         self.cameras = [c for c in CAMERAS if c in camera_names(model)]
