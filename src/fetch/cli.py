@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import pathlib
 import sys
 from collections.abc import Callable, Sequence
 
@@ -15,6 +16,7 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     """The collector's flags: the seed script's (same names and meaning) plus ours."""
     from fetch.tasks import ENV_IDS
     from fetch.teleop.devices import SCRIPT_FORMAT
+    from fetch.teleop.gamepad import add_gamepad_arguments
 
     p.add_argument("--env", default="Bin-pick-v2", metavar="ID",
                    help=f"the task (default Bin-pick-v2), one of: {', '.join(ENV_IDS)}")
@@ -53,22 +55,9 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--image-size", type=int, default=84, help="recorded image width and height [px] (default 84)")
     p.add_argument("--verbose", action="store_true", help="print how every attempt ended (default off)")
     g = p.add_argument_group("gamepad (the seed's flags; raw indices override the SDL layout)")
-    g.add_argument("--profile", default=None,
-                   help="a mapping profile written by `gym-fetch gamepad --calibrate` (default: none)")
+    add_gamepad_arguments(g)
     g.add_argument("--frame", default="camera", choices=["camera", "world"],
-                   help="camera: stick 'up' moves away from the viewer; world: the seed's fixed mapping")
-    g.add_argument("--deadzone", type=float, default=0.10,
-                   help="stick deflection ignored around the centre, as a fraction of full travel (default 0.10)")
-    g.add_argument("--pos-scale", type=float, default=1.0,
-                   help="multiplies the stick's motion command; 1 (default) is full speed, 5 cm per step")
-    g.add_argument("--invert-y", dest="invert_y", action="store_true", default=True,
-                   help="stick up moves forward (SDL reports up as negative; default on, the seed's)")
-    g.add_argument("--no-invert-y", dest="invert_y", action="store_false", help="stick up moves backward")
-    g.add_argument("--gripper-open", type=float, default=1.0, help="a[3] sent to open the fingers (default 1.0)")
-    g.add_argument("--gripper-close", type=float, default=-1.0,
-                   help="a[3] sent to close the fingers (default -1.0)")
-    for flag in ("--axis-lx", "--axis-ly", "--axis-lt", "--axis-rt", "--button-x", "--button-y", "--button-start"):
-        g.add_argument(flag, type=int, default=None, help="raw joystick index (default: the SDL layout's)")
+                   help="camera (default): stick 'up' moves away from the viewer; world: the seed's fixed mapping")
     p.add_argument("--scripted-json", default=None, metavar="FILE", help=SCRIPT_FORMAT)
 
 
@@ -103,6 +92,11 @@ def run_info(args: argparse.Namespace) -> int:
         print(f"  settings    {ds.settings}")
         print("  versions    " + ", ".join(f"{k} {v}" for k, v in s.versions.items()))
         problems = validate(ds)
+    return _verdict(problems)
+
+
+def _verdict(problems: list[str]) -> int:
+    """Print `valid`, or the problems (the first 50); the exit status of `info`."""
     if problems:
         print(f"INVALID: {len(problems)} problem(s):")
         for p in problems[:50]:
@@ -112,7 +106,7 @@ def run_info(args: argparse.Namespace) -> int:
     return 0
 
 
-def _info_npz(path: str, files: list) -> int:
+def _info_npz(path: str, files: list[pathlib.Path]) -> int:
     """`info` on the seed's per-demo files (`collect --format npz`)."""
     from fetch.dataset.npz import load_npz, problems
 
@@ -132,13 +126,7 @@ def _info_npz(path: str, files: list) -> int:
     found = [p for d in demos for p in problems(d)]
     if len(envs) > 1:
         found.append(f"the files are of {len(envs)} envs: {', '.join(envs)}")
-    if found:
-        print(f"INVALID: {len(found)} problem(s):")
-        for p in found[:50]:
-            print(f"  - {p}")
-        return 1
-    print("valid")
-    return 0
+    return _verdict(found)
 
 
 def run_replay(args: argparse.Namespace) -> int:
@@ -150,7 +138,6 @@ def run_replay(args: argparse.Namespace) -> int:
 
 
 def run_video(args: argparse.Namespace) -> int:
-    import pathlib
 
     from fetch._progress import progress
     from fetch.dataset import open_dataset
@@ -184,7 +171,7 @@ def run_video(args: argparse.Namespace) -> int:
     return 0
 
 
-def _no_such_npz(demo: str, files: list) -> list:
+def _no_such_npz(demo: str, files: list[pathlib.Path]) -> list[pathlib.Path]:
     from fetch.errors import FetchError
 
     raise FetchError(f"no demo file {demo!r}; this directory has {', '.join(f.stem for f in files[:5])}"

@@ -523,7 +523,8 @@ def legend(config: GamepadConfig) -> list[str]:
 
 def add_gamepad_arguments(p: argparse.ArgumentParser | Any) -> None:
     """The seed's gamepad flags (same names and meaning) plus --profile and --precision-scale."""
-    p.add_argument("--profile", default=None, help="a mapping profile written by `gym-fetch gamepad --calibrate`")
+    p.add_argument("--profile", default=None,
+                   help="a mapping profile written by `gym-fetch gamepad --calibrate` (default: none)")
     p.add_argument("--deadzone", type=float, default=0.10,
                    help="radial dead zone of the left stick, a fraction of full travel (default 0.10)")
     p.add_argument("--pos-scale", type=float, default=1.0,
@@ -531,13 +532,13 @@ def add_gamepad_arguments(p: argparse.ArgumentParser | Any) -> None:
     p.add_argument("--precision-scale", type=float, default=0.3,
                    help="motion scale while precision (RB) is held (default 0.3)")
     p.add_argument("--invert-y", dest="invert_y", action="store_true", default=True,
-                   help="stick up gives +y (default)")
+                   help="stick up moves forward (SDL reports up as negative; default on, the seed's)")
     p.add_argument("--no-invert-y", dest="invert_y", action="store_false", help="stick up moves backward")
     p.add_argument("--gripper-open", type=float, default=1.0, help="a[3] sent to open the fingers (default 1.0)")
     p.add_argument("--gripper-close", type=float, default=-1.0,
                    help="a[3] sent to close the fingers (default -1.0)")
     for flag in ("--axis-lx", "--axis-ly", "--axis-lt", "--axis-rt", "--button-x", "--button-y", "--button-start"):
-        p.add_argument(flag, type=int, default=None, help="raw joystick index (overrides the SDL layout)")
+        p.add_argument(flag, type=int, default=None, help="raw joystick index (default: the SDL layout's)")
 
 
 def add_gamepad_parser(subparsers: Any) -> argparse.ArgumentParser:
