@@ -138,7 +138,6 @@ def run_replay(args: argparse.Namespace) -> int:
 
 
 def run_video(args: argparse.Namespace) -> int:
-
     from fetch._progress import progress
     from fetch.dataset import open_dataset
     from fetch.dataset.frames import StateRenderer
