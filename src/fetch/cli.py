@@ -64,11 +64,13 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
 def run_collect(args: argparse.Namespace) -> int:
     import fetch  # noqa: F401  (registers the ids)
     from fetch.teleop import build
+    from fetch.teleop.stopping import stop_on_signals
 
-    session = build.session_from_args(args)
-    summary = session.run()
-    print(summary.describe(), flush=True)
-    return 1 if summary.error else 0
+    with stop_on_signals():
+        session = build.session_from_args(args)
+        summary = session.run()
+        print(summary.describe(), flush=True)
+    return summary.exit_status
 
 
 def run_info(args: argparse.Namespace) -> int:
@@ -316,8 +318,8 @@ def _run(args: argparse.Namespace, prog: str | None = None) -> int:
     except FetchError as e:
         print(f"{prog or 'gym-fetch ' + args.command}: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        return 130
+    except KeyboardInterrupt as e:  # Ctrl-C, or (collect) SIGTERM: 128 + the signal's number
+        return 128 + int(getattr(e, "signum", 2))
     except BrokenPipeError:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1

@@ -1,24 +1,27 @@
-"""The Slide expert: put the puck on the goal's line with a push along y, then push it along x.
+"""The Slide expert: push the puck along an axis onto a diagonal through the goal, then shoot it.
 
-What it relies on (measured on Slide's table, friction 0.1):
+What it relies on (measured on Fetch*-v4's Slide table, friction 0.1, MuJoCo's default pyramidal
+friction cone):
 
-- A puck gliding alone decelerates at `DECELERATION`, so from speed v it slides v^2 / (2 a)
-  further. The hand can push it (at table height) only to x ~ 1.42 m; goals reach 1.69 m, so
-  the puck must be let go at the speed that carries it the rest of the way.
-- The closed fingers are a box, and a puck against a face rolls freely along it: a face pushes
-  the puck along the face's normal (to within a degree) whichever way the hand moves, and a
-  corner sends it 10-40 degrees off. So every push is along x or along y, with a face.
-- Along x that face is the two fingertips side by side, with a slot between them. A puck pushed
-  at the slot wedges into it: it prises the fingers ~8 mm apart, tilts up to 14 degrees and
-  leaves sideways. So an x push uses one fingertip's face, the hand offset by `FINGER` across.
-- A slow push is robust (the puck stays on the fingers and stops within a centimetre when the
-  hand stops), a fast one is not: each push's speed follows the profile sqrt(2 a d) of the
-  distance d left, capped, so the puck never carries more speed than it needs.
+- Friction on the table is not isotropic. A gliding puck decelerates at `DECELERATION` along the
+  larger of its x and y velocity components only, the smaller one kept, until both are equal;
+  then both at half that. From a launch (A, B), A >= B >= 0, it comes to rest (A^2 + B^2) / 2a
+  further along A's axis and A B / a along B's (`glide`): a glide along an axis stays on it, any
+  other bends towards the nearest diagonal, and along the diagonal the puck goes sqrt(2) times
+  further than along an axis for the same speed.
+- Pushed, the puck follows the same rule: a face of the closed fingers pushes it along the face's
+  normal (the puck rolls along the face) and the fingers' corner pushes it along the diagonal.
+  So the pushes here go along x, along y, or along a diagonal, and nothing else is aimed.
+- Along x the face is the two fingertips side by side with a slot between them: a puck pushed at
+  the slot wedges into it, so an x push uses one fingertip, the hand offset by `FINGER` across.
+- The plan: from where the puck will rest, one axis push that leaves the goal on a diagonal (or on
+  the axis) from the puck, then a shot along that diagonal (or axis), let go at the speed whose
+  glide ends on the goal. The diagonal shot is forgiving: a glide that starts a little off the
+  diagonal bends back onto it. The hand reaches only x ~ 1.39 m at table height, so when the axis
+  push would have to end beyond that, the diagonal goes first and the shot is along x.
 - The hand surges in the middle of each control step (the mocap target jumps once per step), so
-  a pushed puck leaves up to ~1.5 times faster than the hand's end-of-step speed: the profile is
-  scaled down, more along y, where an overshoot towards the table's side can strand the puck.
-- Under action noise, every extra push risks more than it gains: the expert stops once the puck
-  will rest within `arrived` of the goal, and pushes again only if it leaves `leave`.
+  a pushed puck leaves up to ~1.5 times faster than the hand: the release watches the puck's own
+  speed and lets go a step before its glide would reach the target.
 """
 
 from __future__ import annotations
@@ -31,106 +34,100 @@ from fetch.experts.base import Expert
 from fetch.observation import CONTROL_DT
 
 DECELERATION = 0.98
-"""[m/s^2] a gliding puck's deceleration (friction 0.1 times g)."""
+"""[m/s^2] a puck gliding along an axis decelerates this much (friction 0.1 times g)."""
 RADIUS = 0.025
 """[m] the puck's radius."""
-FACE = (0.0135, 0.0149)
-"""[m] the closed fingers' half extents along x and y around the grip site."""
+FRONT = 0.0144
+"""[m] the closed fingers' front face, along x from the grip site."""
+SIDES = (0.0152, -0.0166)
+"""[m] the closed fingers' +y and -y side faces, along y from the grip site."""
+MIDDLE = -0.001
+"""[m] the middle of the fingers' side faces, along x from the grip site."""
 FINGER = 0.0079
 """[m] each fingertip's centre across the hand (y) from the grip site; each is 14 mm wide."""
 
 
-def glide(speed: float) -> float:
-    """[m] how far a puck moving at `speed` [m/s] slides before it stops."""
-    return max(speed, 0.0) ** 2 / (2.0 * DECELERATION)
+def glide(velocity: np.ndarray) -> np.ndarray:
+    """[m] where a puck moving at `velocity` [m/s, world xy] comes to rest, from where it is."""
+    a, b = abs(float(velocity[0])), abs(float(velocity[1]))
+    major, minor = (a * a + b * b) / (2.0 * DECELERATION), a * b / DECELERATION
+    rest = np.array([major, minor]) if a >= b else np.array([minor, major])
+    return rest * np.sign(velocity[:2])
 
 
-def speed_to_glide(distance: float) -> float:
-    """[m/s] the speed at which a puck slides `distance` [m] before it stops (0 if distance <= 0)."""
-    return float(np.sqrt(2.0 * DECELERATION * max(distance, 0.0)))
+def launch(displacement: np.ndarray) -> np.ndarray:
+    """[m/s] the velocity whose glide ends `displacement` [m, world xy] away (`glide`'s inverse)."""
+    x, y = abs(float(displacement[0])), abs(float(displacement[1]))
+    s = np.sqrt(2.0 * DECELERATION * (x + y))
+    t = np.sqrt(2.0 * DECELERATION * abs(x - y))
+    major, minor = (s + t) / 2.0, (s - t) / 2.0
+    speed = np.array([major, minor]) if x >= y else np.array([minor, major])
+    return speed * np.where(np.asarray(displacement[:2]) < 0, -1.0, 1.0)
 
 
 class Slide(Expert):
-    """Plan -> line up -> push -> watch, along y while the puck is off the goal's line, then x."""
+    """Plan -> line up -> push -> watch: an axis push onto the goal's diagonal, then the shot."""
 
-    aligned = 0.025
-    """[m] the puck counts as on the goal's line (y) within this."""
-    arrived = 0.035
+    arrived = 0.03
     """[m] no further push once the puck will rest this close to the goal..."""
     leave = 0.045
     """[m] ...until something moves it further than this (a correction risks more than it gains)."""
+    on_line = 0.015
+    """[m] the goal counts as on a diagonal (or an axis) from the puck within this across."""
     gap = 0.012
-    """[m] free space between the fingers and the puck where the hand comes down: under action
-    noise the hand wanders a few mm a step, and a descending finger that touches the puck knocks it."""
-    catch = 0.004
-    """[m] how far a step the hand closes in on a puck at rest: the first touch is gentle."""
-    hover = 0.06
+    """[m] free space between the fingers and the puck where the hand comes down."""
+    hover = 0.05
     """[m] how high above the puck's centre the hand crosses over it."""
-    close = 0.008
+    margin = 0.006
+    """[m] the fingers pass the puck at least this far off when they stay low."""
+    close = 0.006
     """[m] the hand counts as at the start of a push within this."""
-    at_rest = 0.03
+    at_rest = 0.05
     """[m/s] a puck slower than this counts as stopped."""
-    ramp = 0.08
+    ramp = 0.25
     """[m/s] how much faster the push may get each step."""
-    slow = (0.45, 0.25)
-    """[m/s] the push's speed (along x, y) where the hand can follow the puck all the way. Along y
-    it is lower: a y push that overshoots towards the table's side can leave the puck where the
-    hand cannot get round it."""
-    short = 0.015
-    """[m] the push aims to leave the puck this far short of the goal (but for the line-up of a shot
-    beyond the hand's reach, which aims at the goal's line: see `push`)."""
-    profile = (0.5, 0.5)
-    """a push's speed (along x, y) as a fraction of the speed that would carry the puck just to the
-    goal. The puck leaves faster than the hand: the hand surges in the middle of each control step."""
-    feedback = 1.0
+    slow = 0.45
+    """[m/s] the top speed of a push that puts the puck on the diagonal."""
+    fast = 1.0
+    """[m/s] the top speed of a shot."""
+    reach = 1.36
+    """[m] the furthest the puck's centre x can be pushed to (the hand stops at x ~ 1.39 m)."""
+    lead = 1.0
+    """[steps] the release comes this many steps of the puck's motion before its glide would do."""
+    catch = 0.004
+    """[m] how far a step the hand closes in on a puck at rest."""
+    lag = 2.0
+    """[1] the hand covers about 1 / lag of its target's offset in a step."""
+    feedback = 0.5
     """[1] how much of the puck's speed error the hand's next step corrects."""
-    centred = 0.003
-    """[m] how far the puck may drift across the face's middle before the hand follows it."""
-    rolled = (0.009, FACE[0])
-    """[m] the puck has rolled off the face (x push: one fingertip, y push: a finger's side) once
-    its centre is this far across from the face's middle."""
-    stretch = 1.49
-    """[m] the furthest x where the hand gets down to the puck's height."""
-    reach = 1.40
-    """[m] the puck's centre x where a push along x should have let go (the arm's reach at table
-    height, less a margin: the hand slows as the arm stretches)."""
-    limit = 1.61
-    """[m] the puck's centre x where the hand can push it no further (the grip site stops at
-    x ~ 1.57 m at table height)."""
+    """[steps] the release comes this many steps of the puck's motion before its glide would do."""
 
     def reset(self) -> None:
         super().reset()
-        self.axis = 0
-        self.sign = 1.0
+        self.push_dir = np.array([1.0, 0.0])
+        self.contact = np.zeros(2)
+        self.target = np.zeros(2)
+        self.shot = False
         self.speed = 0.0
-        self.line = 0.0
         self.descending = False
         self.hold = np.zeros(3)
-        self.y_pushes = 0  # pushes along y started this episode
+        self.pushes = 0
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         grip = self.part(obs, "grip_pos")
         puck = self.part(obs, "object_pos")
         velocity = (self.part(obs, "object_velp") + self.part(obs, "grip_velp"))[:2] / CONTROL_DT
         goal = np.asarray(obs["desired_goal"])
-        speed = float(np.linalg.norm(velocity))
-        rest = puck[:2] + velocity / max(speed, 1e-9) * glide(speed)
+        rest = puck[:2] + glide(velocity)
         if self.stage == "watch" and self.timer < 2:
-            return self.toward(grip, grip - self.direction() * 0.02)
-        # Plan again until the hand comes down: a puck still gliding may stop elsewhere than
-        # predicted, or the hand may have nudged it on the way round.
+            return self.toward(grip, np.array([*(grip[:2] - self.push_dir * 0.03), puck[2] + 0.02]))
         if self.stage in ("start", "watch", "done") or (self.stage == "line_up" and not self.descending):
             self.plan(rest, goal, grip)
         if self.stage == "done":
             return self.toward(grip, self.hold)
         if self.stage == "line_up":
-            return self.line_up(grip, puck, rest, speed)
-        return self.push(grip, puck, goal, velocity)
-
-    def direction(self) -> np.ndarray:
-        unit = np.zeros(3)
-        unit[self.axis] = self.sign
-        return unit
+            return self.line_up(grip, puck, rest, float(np.linalg.norm(velocity)))
+        return self.push(grip, puck, velocity)
 
     def plan(self, rest: np.ndarray, goal: np.ndarray, grip: np.ndarray) -> None:
         """Choose the next push from where the puck will come to rest."""
@@ -138,106 +135,108 @@ class Slide(Expert):
         if np.linalg.norm(error) < (self.leave if self.stage == "done" else self.arrived):
             self.finish(grip, goal)
             return
-        axis = 1 if abs(error[1]) > self.aligned else 0
-        sign = float(np.sign(error[axis]) or 1.0)
-        if self.stage != "line_up" or (axis, sign) != (self.axis, self.sign):
-            self.axis, self.sign = axis, sign
-            if self.behind(np.array([*rest, goal[2]]), self.gap)[0] > self.stretch:
-                # Out of the hand's reach at the puck's height: an attempt would only knock it.
-                self.finish(grip, goal)
-                return
+        dx, dy = float(error[0]), float(error[1])
+        sx, sy = float(np.sign(dx) or 1.0), float(np.sign(dy) or 1.0)
+        if abs(dy) < self.on_line or abs(dx) < self.on_line:
+            # On an axis: shoot along it.
+            direction, target, shot = (np.array([sx, 0.0]) if abs(dy) < self.on_line
+                                       else np.array([0.0, sy])), goal[:2], True
+        elif abs(abs(dx) - abs(dy)) < self.on_line:
+            direction, target, shot = np.array([sx, sy]) / np.sqrt(2.0), goal[:2], True
+        elif abs(dy) > abs(dx):
+            # Along y until the goal is on the diagonal.
+            direction, target, shot = np.array([0.0, sy]), np.array([rest[0], goal[1] - sy * abs(dx)]), False
+        elif goal[0] - sx * abs(dy) <= self.reach:
+            # Along x until the goal is on the diagonal.
+            direction, target, shot = np.array([sx, 0.0]), np.array([goal[0] - sx * abs(dy), rest[1]]), False
+        else:
+            # The x push would end beyond the hand's reach: the diagonal first, then a shot along x.
+            direction = np.array([sx, sy]) / np.sqrt(2.0)
+            target, shot = np.array([rest[0] + sx * abs(dy), goal[1]]), False
+        changed = not np.allclose(direction, self.push_dir) or self.stage != "line_up"
+        self.push_dir, self.target, self.shot = direction, target, shot
+        self.contact = self.contact_point(direction)
+        if changed:
             self.advance("line_up")
 
+    def contact_point(self, direction: np.ndarray) -> np.ndarray:
+        """[m] the point of the fingers (from the grip site, xy) that pushes along `direction`."""
+        if direction[1] == 0.0:
+            return np.array([np.sign(direction[0]) * FRONT, FINGER])
+        if direction[0] == 0.0:
+            return np.array([MIDDLE, SIDES[0] if direction[1] > 0 else SIDES[1]])
+        return np.array([np.sign(direction[0]) * FRONT, SIDES[0] if direction[1] > 0 else SIDES[1]])
+
     def finish(self, grip: np.ndarray, goal: np.ndarray) -> None:
-        """No more pushes: hold still, clear above the puck (zero actions would let action noise
-        walk the hand into it)."""
+        """No more pushes: hold still, clear above the puck."""
         if self.stage != "done":
             self.hold = np.array([*grip[:2], goal[2] + self.hover])
             self.advance("done")
 
-    def across(self) -> float:
-        """[m] where the face's middle lies across the push from the grip site: an x push uses the
-        fingertip at +y (the slot between the fingertips would catch the puck)."""
-        return FINGER if self.axis == 0 else 0.0
-
-    def behind(self, puck: np.ndarray, gap: float) -> np.ndarray:
-        """[m] where the grip site is when the face is `gap` behind `puck` (world xyz)."""
-        start = puck - self.direction() * (RADIUS + FACE[self.axis] + gap)
-        start[1 - self.axis] -= self.across()
-        return start
+    def start(self, puck: np.ndarray, gap: float) -> np.ndarray:
+        """[m] where the grip site is when the contact point is `gap` behind the puck (xy)."""
+        return puck[:2] - self.push_dir * (RADIUS + gap) - self.contact
 
     def line_up(self, grip: np.ndarray, puck: np.ndarray, rest: np.ndarray, speed: float) -> np.ndarray:
         """To the start behind where the puck will rest (over it if it is in the way), then down
         once the puck has stopped."""
-        start = self.behind(np.array([*rest, puck[2]]), self.gap)
-        off = float(np.linalg.norm(grip[:2] - start[:2]))
+        start = self.start(np.array([*rest, puck[2]]), self.gap)
+        off = float(np.linalg.norm(grip[:2] - start))
         if self.descending and off > 2 * self.close:
-            self.descending = False  # knocked off the start: go round again
+            self.descending = False
         if self.descending or (off < self.close and speed < self.at_rest):
             self.descending = True
-            if abs(grip[2] - puck[2]) < 0.004:
-                self.speed, self.line, self.descending = 0.0, float(grip[1 - self.axis]), False
+            if abs(grip[2] - puck[2]) < 0.007:
+                self.speed, self.descending = 0.0, False
+                self.pushes += 1
                 self.advance("push")
-                self.y_pushes += self.axis == 1
-            return self.toward(grip, start)
+            return self.toward(grip, np.array([*start, puck[2]]))
         high = puck[2] + self.hover
-        clear = _distance_to_segment(puck[:2], grip[:2], start[:2]) > RADIUS + 0.035
-        if clear and speed < self.at_rest:
-            return self.toward(grip, start)
+        if speed < self.at_rest and _clear(puck[:2], grip[:2], start, RADIUS + self.margin):
+            return self.toward(grip, np.array([*start, puck[2]]))
         if grip[2] < high - 0.02:
-            # Low near the puck: rise first so the hand never sweeps across it.
             return self.toward(grip, np.array([*grip[:2], high]))
-        return self.toward(grip, np.array([*start[:2], high]))
+        return self.toward(grip, np.array([*start, high]))
 
-    def push(self, grip: np.ndarray, puck: np.ndarray, goal: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Push with a face at the profile's speed; let go once the puck will glide far enough."""
-        unit = self.direction()
-        short = self.short
-        if self.axis == 1 and self.y_pushes == 1 and goal[0] > self.stretch:
-            # Lining up a shot at a goal the hand cannot get down to: nothing corrects the line
-            # afterwards and the shot drifts across on its own, so aim at the line itself (a
-            # landing a little past it is still on it, within `aligned`). Not when correcting a
-            # line-up that missed: pushes that imprecise would ping-pong across the line.
-            short = 0.0
-        left = float((goal - puck)[self.axis]) * self.sign
-        along = float(velocity[self.axis]) * self.sign
-        # Let go once the puck will glide far enough, a step early (the hand answers one step
-        # later and the puck moves on meanwhile), or if it rolled off the fingers' face.
-        drift = float(puck[1 - self.axis]) - self.line - self.across()
-        rolled_off = abs(drift) > self.rolled[self.axis]
-        if rolled_off or left - glide(along) - along * CONTROL_DT <= short:
+    def push(self, grip: np.ndarray, puck: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Push with the contact point at the profile's speed; let go once the puck will glide to
+        the target, or where the hand can go no further."""
+        unit = self.push_dir
+        left = float((self.target - puck[:2]) @ unit)
+        along = float(velocity @ unit)
+        ahead = float(glide(velocity) @ unit) + self.lead * along * CONTROL_DT
+        if ahead >= left or (unit[0] > 0 and puck[0] > self.reach and along > 0):
             self.advance("watch")
-            return self.toward(grip, grip - unit * 0.02)
-        # The speed that, let go where the hand must stop, carries the puck to the goal.
-        beyond = self.sign * (goal[0] - self.reach) - short if self.axis == 0 else 0.0
-        launch = speed_to_glide(beyond)
-        # Below the speed at which it would just glide to the goal (bumps leave it faster).
-        profile = self.profile[self.axis] * speed_to_glide(left - short)
-        # ...but never below the speed that carries it on from where the arm runs out.
-        last = self.sign * (goal[0] - self.limit) - short if self.axis == 0 else 0.0
-        floor = speed_to_glide(last)
-        self.speed = min(max(self.slow[self.axis], launch), max(profile, floor), self.speed + self.ramp)
-        # The hand drives the puck a little faster than its target moves: correct by what it does.
-        drive = max(self.speed + self.feedback * (self.speed - along), 0.0) if along > 0.1 else self.speed
-        # From the puck's contact point (or the hand, if it lags), on the line the push started on.
-        lead = max(float((self.behind(puck, 0.0) - grip) @ unit), 0.0)
+            return self.toward(grip, np.array([*(grip[:2] - unit * 0.03), puck[2] + 0.02]))
+        need = float(np.linalg.norm(launch(unit * left)))
+        contact = self.start(puck, 0.0)
+        behind = max(float((contact - grip[:2]) @ unit), 0.0)
+        across = contact - grip[:2] - behind * unit
         if along < self.at_rest:
-            lead = min(lead, self.catch)
-        target = grip + unit * (lead + drive * CONTROL_DT)
-        # Keep the puck near the face's middle: follow its drift across beyond that.
-        if abs(drift) > self.centred:
-            self.line += drift - np.sign(drift) * self.centred
-        target[1 - self.axis] = self.line
-        target[2] = puck[2]
-        return self.toward(grip, target)
+            # Close in gently: a hand that hits the puck at speed bounces it off faster still.
+            self.speed = 0.0
+            step = min(behind, self.catch) + self.catch
+        else:
+            top = self.fast if self.shot else self.slow
+            self.speed = min(self.speed + self.ramp, top, max(need, 0.1))
+            # The hand lags its target (it covers about 1 / `lag` of the offset per step).
+            step = behind + self.lag * (self.speed + self.feedback * (self.speed - along)) * CONTROL_DT
+        target = grip[:2] + unit * max(step, 0.0) + across
+        return self.toward(grip, np.array([*target, puck[2]]))
 
     def toward(self, grip: np.ndarray, target: np.ndarray) -> np.ndarray:
         """The action moving the grip site towards `target`, fingers closed."""
         return np.append(self.move(grip, target), -1.0)
 
 
-def _distance_to_segment(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    """[m] the distance from `point` to the segment a-b (xy)."""
-    ab = b - a
-    t = float(np.clip((point - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0))
-    return float(np.linalg.norm(point - (a + t * ab)))
+BOX = (np.array([-0.0164, SIDES[1]]), np.array([FRONT, SIDES[0]]))
+"""[m] the closed fingers' extent (xy) from the grip site: low, high corners."""
+
+
+def _clear(puck: np.ndarray, a: np.ndarray, b: np.ndarray, distance: float) -> bool:
+    """Whether the fingers, moving from grip a to grip b (xy), stay `distance` [m] from the puck's centre."""
+    for t in np.linspace(0.0, 1.0, 9):
+        local = puck - (a + t * (b - a))
+        if np.linalg.norm(local - np.clip(local, BOX[0], BOX[1])) < distance:
+            return False
+    return True

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -19,9 +20,14 @@ from fetch.dataset.writer import BackgroundWriter, DatasetWriter, Header, packag
 from fetch.errors import FetchError, UnknownNameError
 from fetch.rendering import check_camera
 from fetch.teleop.devices import DEVICES, Command, Device
+from fetch.teleop.stopping import Stopped, signals_held
 
 FORMATS = ("hdf5", "npz")
 RENDER_CHOICES = ("auto", "human", "rgb_array", "none")
+
+
+MAX_SEED = 2**62
+"""The largest --seed: seed + attempt number must fit the 64-bit integer a demo stores."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +71,9 @@ class CollectConfig:
                                  ("--image-size", self.image_size, 1)):
             if value < low:
                 raise FetchError(f"{name} must be at least {low}, got {value}")
+        if not 0 <= self.seed <= MAX_SEED:
+            raise FetchError(f"--seed must be a whole number from 0 to 2**62 (every demo stores its reset seed as a "
+                             f"64-bit integer), got {self.seed}")
         if self.control_hz is not None and not (self.control_hz >= 0 and math.isfinite(self.control_hz)):
             raise FetchError(f"--control-hz must be a rate in Hz >= 0 (0: as fast as possible), got {self.control_hz}")
         if self.cameras and self.format != "hdf5":
@@ -138,6 +147,15 @@ class SessionSummary:
     achieved_hz: float
     late_ticks: int
     error: str | None = None
+    stopped_by: int | None = None
+    """the signal that stopped the session (SIGINT, SIGTERM), if one did."""
+
+    @property
+    def exit_status(self) -> int:
+        """0; 1 after an error; 128 + the signal's number after a stop signal (130 for Ctrl-C)."""
+        if self.error:
+            return 1
+        return 128 + self.stopped_by if self.stopped_by is not None else 0
 
     @property
     def success_rate(self) -> float:
@@ -243,7 +261,7 @@ class Session:
                  f"{'' if demo.success else ' (failed, kept)'}")
 
     def run(self) -> SessionSummary:
-        error = None
+        error, stopped_by = None, None
         try:
             while not self.config.episodes or self.saved_this_session < self.config.episodes:
                 attempt = self.attempt()
@@ -253,21 +271,23 @@ class Session:
                              f"{attempt.ended_by}" + ("" if attempt.saved_as else ", not saved"))
                 if attempt.ended_by == "quit":
                     break
-        except KeyboardInterrupt:
-            self.log("interrupted: finishing the saves")
+        except KeyboardInterrupt as e:
+            stopped_by = e.signum if isinstance(e, Stopped) else int(signal.SIGINT)
+            self.log(f"interrupted ({signal.Signals(stopped_by).name}): finishing the saves")
         except FetchError as e:  # the writer or the viewer failed: stop collecting, keep what is saved
             error = str(e)
         finally:
-            try:
-                self.writer.close()
-            except FetchError as e:
-                error = error or str(e)
-            self.device.close()
-            if self.display is not None:
-                self.display.close()
+            with signals_held("still finishing the saves; they will complete, then the session stops"):
+                try:
+                    self.writer.close()
+                except FetchError as e:
+                    error = error or str(e)
+                self.device.close()
+                if self.display is not None:
+                    self.display.close()
         rates = [a.achieved_hz for a in self.attempts if a.achieved_hz > 0]
         return SessionSummary(self.attempts, self.saved_this_session, self.writer.saved, self.config.out,
-                              float(np.mean(rates)) if rates else 0.0, self.clock.late, error)
+                              float(np.mean(rates)) if rates else 0.0, self.clock.late, error, stopped_by)
 
     def attempt(self) -> Attempt:
         """One episode from one reset, recorded; saved if it held success (or --keep-failures)."""

@@ -1,0 +1,75 @@
+"""How a collection session stops on a signal: SIGTERM as Ctrl-C, and the saves finished whatever comes next."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import threading
+from collections.abc import Iterator
+from types import FrameType
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Stopped(KeyboardInterrupt):
+    """A stop signal arrived (Ctrl-C's SIGINT, or SIGTERM from `kill`, a service manager, a scheduler)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def stop_on_signals() -> Iterator[None]:
+    """While inside, the first SIGINT or SIGTERM raises `Stopped` in the main thread, and later ones
+    (until the process exits) only say that the saves are being finished. SDL, which turns SIGTERM
+    into a quit event that a headless session never reads, is told to leave signals alone."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    stopping: list[int] = []
+
+    def stop(signum: int, frame: FrameType | None) -> None:
+        if stopping:
+            os.write(2, b"still finishing the saves; they will complete, then the session stops\n")
+            return
+        stopping.append(signum)
+        raise Stopped(signum)
+
+    hint = os.environ.get("SDL_NO_SIGNAL_HANDLERS")
+    os.environ["SDL_NO_SIGNAL_HANDLERS"] = "1"  # read when pygame starts SDL
+    old = {s: signal.signal(s, stop) for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        if not stopping:
+            # After a stop the handlers stay: the process is on its way out, and a second Ctrl-C
+            # arriving while it prints the summary or exits would otherwise end it with a traceback.
+            for s, handler in old.items():
+                signal.signal(s, handler)
+        if hint is None:
+            os.environ.pop("SDL_NO_SIGNAL_HANDLERS", None)
+        else:
+            os.environ["SDL_NO_SIGNAL_HANDLERS"] = hint
+
+
+@contextlib.contextmanager
+def signals_held(message: str) -> Iterator[list[int]]:
+    """While inside, SIGINT and SIGTERM are noted (and `message` printed) instead of interrupting: the
+    saves that a first Ctrl-C asked to finish are not abandoned by a second one."""
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received
+        return
+
+    def note(signum: int, frame: FrameType | None) -> None:
+        received.append(signum)
+        os.write(2, f"{message}\n".encode())
+
+    old = {s: signal.signal(s, note) for s in STOP_SIGNALS}
+    try:
+        yield received
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
