@@ -134,22 +134,24 @@ def write_demo_group(group: h5py.Group, demo: Demo) -> None:
 
 
 def lock_directory(directory: pathlib.Path, alternative: str) -> Any:
-    """Hold `directory/.lock` exclusively (until `unlock_directory`); DatasetError if another
-    collector or tool holds it. `alternative` completes the message ("choose another --out")."""
-    handle = open(directory / ".lock", "a+")  # noqa: SIM115 (held until unlock_directory)
+    """Hold `directory` itself exclusively (an flock on the directory, until `unlock_directory`);
+    DatasetError if another collector or tool holds it. `alternative` completes the message
+    ("choose another --out"). A lock on a file inside could be bypassed by deleting the file."""
+    fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
     try:
-        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as e:
-        handle.close()
-        raise DatasetError(f"{directory} is in use by another collector or tool (its lock file {directory}/.lock "
-                           f"is held); wait for it to finish or {alternative}") from e
-    return handle
+        os.close(fd)
+        raise DatasetError(f"{directory} is in use by another collector or tool (it holds the directory's lock); "
+                           f"wait for it to finish or {alternative}") from e
+    return fd
 
 
 def unlock_directory(handle: Any) -> None:
     with contextlib.suppress(OSError):
         fcntl.flock(handle, fcntl.LOCK_UN)
-    handle.close()
+    with contextlib.suppress(OSError):
+        os.close(handle)
 
 
 @contextlib.contextmanager
@@ -256,7 +258,9 @@ class BackgroundWriter:
         return lock_directory(self.out_dir, "choose another --out")
 
     def _unlock(self) -> None:
-        unlock_directory(self._lock_file)
+        if self._lock_file is not None:  # once: the descriptor's number may be reused after close
+            unlock_directory(self._lock_file)
+            self._lock_file = None
 
     def reserve_attempt(self) -> int:
         """The number of the attempt about to start."""
@@ -374,6 +378,7 @@ class DatasetWriter(BackgroundWriter):
             if self.index_path.exists():
                 self._resume()
             else:
+                self._refuse_orphans()
                 self._write_index()
         except OSError as e:
             self._unlock()
@@ -385,6 +390,19 @@ class DatasetWriter(BackgroundWriter):
         self._start()
 
     # -- resume -------------------------------------------------------------------------------
+
+    def _refuse_orphans(self) -> None:
+        """No index, but demo files (the index deleted, or a dangling link): a new dataset would
+        overwrite them from demo_0 on, so refuse, naming what is there."""
+        found = sorted(self.episodes_dir.glob("demo_*.hdf5"))
+        if self.index_path.is_symlink():
+            raise DatasetError(f"{self.index_path} is a link to {os.readlink(self.index_path)}, which does not "
+                               "exist; restore it or choose another --out (nothing was written)")
+        if found:
+            raise DatasetError(f"{self.out_dir} has {len(found)} demo file(s) in {schema.EPISODES_DIR}/ (e.g. "
+                               f"{found[0].name}) but no {schema.INDEX_NAME} listing them; a new dataset would "
+                               f"overwrite them. Restore {schema.INDEX_NAME}, move {schema.EPISODES_DIR}/ away, or "
+                               "choose another --out (nothing was written)")
 
     def _resume(self) -> None:
         from fetch.dataset.reader import open_dataset

@@ -1,0 +1,58 @@
+"""Demos already saved are never overwritten: an index gone missing, a lock file deleted."""
+
+from __future__ import annotations
+
+import pathlib
+import signal
+import subprocess
+import sys
+
+from fetch.cli import main
+
+
+def _collect(out: pathlib.Path, episodes: int) -> int:
+    return main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", str(episodes),
+                 "--render", "none", "--out", str(out)])
+
+
+def test_episode_files_without_their_index_are_never_overwritten(tmp_path: pathlib.Path, capsys) -> None:
+    out = tmp_path / "demos"
+    assert _collect(out, 3) == 0
+    (out / "demos.hdf5").unlink()
+    before = {p.name: p.read_bytes() for p in (out / "episodes").iterdir()}
+    capsys.readouterr()
+    assert _collect(out, 2) == 2
+    assert "3 demo file(s)" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in (out / "episodes").iterdir()} == before
+    assert not (out / "demos.hdf5").exists()
+
+
+def test_a_dangling_index_link_is_refused(tmp_path: pathlib.Path, capsys) -> None:
+    out = tmp_path / "demos"
+    out.mkdir()
+    (out / "demos.hdf5").symlink_to(tmp_path / "elsewhere.hdf5")
+    assert _collect(out, 1) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert (out / "demos.hdf5").is_symlink() and not (tmp_path / "elsewhere.hdf5").exists()
+
+
+def test_deleting_a_lock_file_does_not_let_a_second_collector_in(tmp_path: pathlib.Path) -> None:
+    out = tmp_path / "demos"
+    command = [sys.executable, "-u", "-m", "fetch.cli", "collect", "--env", "Reach-v2", "--device", "expert",
+               "--render", "none", "--control-hz", "25", "--episodes", "1000", "--out", str(out)]
+    first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert first.stdout is not None
+        for line in first.stdout:
+            if line.startswith("saved "):
+                break
+        for path in out.iterdir():  # whatever lock file a collector keeps, gone
+            if path.name.startswith(".") and path.is_file():
+                path.unlink()
+        second = subprocess.run(command, capture_output=True, text=True, timeout=120)
+        assert second.returncode == 2, second.stdout[-300:]
+        assert "in use by another collector" in second.stderr
+    finally:
+        first.send_signal(signal.SIGTERM)
+        first.communicate(timeout=60)
+    assert first.returncode == 128 + signal.SIGTERM
