@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import pathlib
 import sys
@@ -145,7 +146,10 @@ def run_video(args: argparse.Namespace) -> int:
     from fetch.dataset.frames import StateRenderer
     from fetch.dataset.npz import load_npz, npz_files
     from fetch.dataset.video import check_video_path, write_video
+    from fetch.errors import FetchError
 
+    if args.fps is not None and not (math.isfinite(args.fps) and args.fps > 0):
+        raise FetchError(f"--fps must be a positive number of frames per second, got {args.fps}")
     out = check_video_path(args.video, args.size, args.size)
     with contextlib.ExitStack() as stack:
         if files := npz_files(args.file):

@@ -77,6 +77,13 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
         raise FetchError(f"merge needs at least two datasets, got {len(inputs)}")
     with contextlib.ExitStack() as stack:
         sources = [stack.enter_context(open_dataset(p)) for p in inputs]
+        seen: dict[pathlib.Path, str] = {}
+        for given, source in zip(inputs, sources, strict=True):
+            key = source.path.resolve()
+            if key in seen:
+                raise FetchError(f"{given} and {seen[key]} are the same dataset ({key}); merging it with itself "
+                                 "would duplicate every demo")
+            seen[key] = str(given)
         target = _out_path(out, [s.path for s in sources], force)
         first = sources[0]
         for other in sources[1:]:

@@ -107,6 +107,9 @@ class Dataset:
         """Demo names for a `--demo` argument: all (None), an index, or a name."""
         if demo is None:
             return list(self.demo_names)
+        if isinstance(demo, str) and not demo.startswith("demo_") and not demo.isdigit():
+            shown = ", ".join(self.demo_names[:5]) + (" ..." if len(self.demo_names) > 5 else "")
+            raise DatasetError(f"--demo {demo!r} is neither an index nor a demo name; {self.path} has {shown}")
         name = demo if isinstance(demo, str) and demo.startswith("demo_") else schema.demo_name(int(demo))
         self.demo(name)  # raises with the valid choices
         return [name]

@@ -71,6 +71,8 @@ class CollectConfig:
                                  ("--image-size", self.image_size, 1)):
             if value < low:
                 raise FetchError(f"{name} must be at least {low}, got {value}")
+        if not str(self.out).strip():
+            raise FetchError("--out must name a directory (it is empty); e.g. --out demos/my_task")
         if not 0 <= self.seed <= MAX_SEED:
             raise FetchError(f"--seed must be a whole number from 0 to 2**62 (every demo stores its reset seed as a "
                              f"64-bit integer), got {self.seed}")
