@@ -43,8 +43,10 @@ SIDES = (0.0152, -0.0166)
 """[m] the closed fingers' +y and -y side faces, along y from the grip site."""
 MIDDLE = -0.001
 """[m] the middle of the fingers' side faces, along x from the grip site."""
-FINGER = 0.0079
-"""[m] each fingertip's centre across the hand (y) from the grip site; each is 14 mm wide."""
+FINGER = 0.012
+"""[m] where the puck's centre is across the hand (y) from the grip site when one fingertip pushes
+it along x: on the +y fingertip (0.8 to 15.2 mm), off the slot between the two and off its corner."""
+
 
 
 def glide(velocity: np.ndarray) -> np.ndarray:
@@ -66,15 +68,15 @@ def launch(displacement: np.ndarray) -> np.ndarray:
 
 
 class Slide(Expert):
-    """Plan -> line up -> push -> watch: an axis push onto the goal's diagonal, then the shot."""
+    """Plan -> line up -> push -> watch: a push onto a line through the goal, then the shot."""
 
     arrived = 0.03
     """[m] no further push once the puck will rest this close to the goal..."""
     leave = 0.045
     """[m] ...until something moves it further than this (a correction risks more than it gains)."""
-    on_line = 0.015
+    on_line = 0.02
     """[m] the goal counts as on a diagonal (or an axis) from the puck within this across."""
-    gap = 0.012
+    gap = 0.010
     """[m] free space between the fingers and the puck where the hand comes down."""
     hover = 0.05
     """[m] how high above the puck's centre the hand crosses over it."""
@@ -84,33 +86,39 @@ class Slide(Expert):
     """[m] the hand counts as at the start of a push within this."""
     at_rest = 0.05
     """[m/s] a puck slower than this counts as stopped."""
-    ramp = 0.25
-    """[m/s] how much faster the push may get each step."""
-    slow = 0.45
-    """[m/s] the top speed of a push that puts the puck on the diagonal."""
-    fast = 1.0
-    """[m/s] the top speed of a shot."""
-    reach = 1.36
-    """[m] the furthest the puck's centre x can be pushed to (the hand stops at x ~ 1.39 m)."""
+    catch = 0.006
+    """[m] how far a step the hand closes in on a puck at rest."""
+    ramp = 0.3
+    """[1] how much larger the push's action may get each step."""
+    strike = 0.9
+    """[m/s] the speed a puck pushed with an action of size 1 leaves at (0.46, 0.68, 0.98 m/s after
+    two steps at 0.5, 0.7, 1 from rest, x ~ 1 m; 10% less at x ~ 1.2 m)."""
+    feedback = 0.0
+    """[1] how much of the puck's speed error the next step's action corrects."""
+    profile = 1.0
+    """[1] the push's speed as a fraction of the speed whose glide would end on its target (the
+    puck leaves faster than the hand: see the module's docstring)."""
     lead = 1.0
     """[steps] the release comes this many steps of the puck's motion before its glide would do."""
-    catch = 0.004
-    """[m] how far a step the hand closes in on a puck at rest."""
-    lag = 2.0
-    """[1] the hand covers about 1 / lag of its target's offset in a step."""
-    feedback = 0.5
-    """[1] how much of the puck's speed error the hand's next step corrects."""
-    """[steps] the release comes this many steps of the puck's motion before its glide would do."""
+    lost = 0.04
+    """[m] the push is over once the puck is this far ahead of the fingers (it got away)."""
+    reach = 1.36
+    """[m] the furthest the puck's centre x can be pushed to (the hand stops at x ~ 1.39 m)."""
+    integral = 0.3
+    """[1] the fraction of its error the hand's target adds up each step (a stretched arm stalls short
+    of a target a few mm away)."""
 
     def reset(self) -> None:
         super().reset()
-        self.push_dir = np.array([1.0, 0.0])
-        self.contact = np.zeros(2)
+        self.line = np.array([1.0, 0.0])  # where the push sends the puck (unit, xy)
+        self.motion = np.array([1.0, 0.0])  # where the hand moves during the push (unit, xy)
+        self.offset = np.zeros(2)  # the puck's centre from the grip site at contact (xy)
         self.target = np.zeros(2)
         self.shot = False
         self.speed = 0.0
         self.descending = False
         self.hold = np.zeros(3)
+        self.bias = np.zeros(3)
         self.pushes = 0
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -120,7 +128,7 @@ class Slide(Expert):
         goal = np.asarray(obs["desired_goal"])
         rest = puck[:2] + glide(velocity)
         if self.stage == "watch" and self.timer < 2:
-            return self.toward(grip, np.array([*(grip[:2] - self.push_dir * 0.03), puck[2] + 0.02]))
+            return self.back_off(grip, puck)
         if self.stage in ("start", "watch", "done") or (self.stage == "line_up" and not self.descending):
             self.plan(rest, goal, grip)
         if self.stage == "done":
@@ -137,35 +145,39 @@ class Slide(Expert):
             return
         dx, dy = float(error[0]), float(error[1])
         sx, sy = float(np.sign(dx) or 1.0), float(np.sign(dy) or 1.0)
-        if abs(dy) < self.on_line or abs(dx) < self.on_line:
-            # On an axis: shoot along it.
-            direction, target, shot = (np.array([sx, 0.0]) if abs(dy) < self.on_line
-                                       else np.array([0.0, sy])), goal[:2], True
+        diagonal = np.array([sx, sy]) / np.sqrt(2.0)
+        if abs(dy) < self.on_line:
+            line, target, shot = np.array([sx, 0.0]), goal[:2], True
         elif abs(abs(dx) - abs(dy)) < self.on_line:
-            direction, target, shot = np.array([sx, sy]) / np.sqrt(2.0), goal[:2], True
+            line, target, shot = diagonal, goal[:2], True
+        elif abs(dx) < self.on_line:
+            line, target, shot = np.array([0.0, sy]), goal[:2], True
         elif abs(dy) > abs(dx):
             # Along y until the goal is on the diagonal.
-            direction, target, shot = np.array([0.0, sy]), np.array([rest[0], goal[1] - sy * abs(dx)]), False
+            line, target, shot = np.array([0.0, sy]), np.array([rest[0], goal[1] - sy * abs(dx)]), False
         elif goal[0] - sx * abs(dy) <= self.reach:
             # Along x until the goal is on the diagonal.
-            direction, target, shot = np.array([sx, 0.0]), np.array([goal[0] - sx * abs(dy), rest[1]]), False
+            line, target, shot = np.array([sx, 0.0]), np.array([goal[0] - sx * abs(dy), rest[1]]), False
         else:
-            # The x push would end beyond the hand's reach: the diagonal first, then a shot along x.
-            direction = np.array([sx, sy]) / np.sqrt(2.0)
-            target, shot = np.array([rest[0] + sx * abs(dy), goal[1]]), False
-        changed = not np.allclose(direction, self.push_dir) or self.stage != "line_up"
-        self.push_dir, self.target, self.shot = direction, target, shot
-        self.contact = self.contact_point(direction)
+            # An x push onto the diagonal would end beyond the hand's reach: the diagonal first.
+            line, target, shot = diagonal, np.array([rest[0] + sx * abs(dy), goal[1]]), False
+        changed = not np.allclose(line, self.line) or self.stage != "line_up"
+        self.line, self.target, self.shot = line, target, shot
+        self.motion, self.offset = self.contact(line)
         if changed:
             self.advance("line_up")
 
-    def contact_point(self, direction: np.ndarray) -> np.ndarray:
-        """[m] the point of the fingers (from the grip site, xy) that pushes along `direction`."""
-        if direction[1] == 0.0:
-            return np.array([np.sign(direction[0]) * FRONT, FINGER])
-        if direction[0] == 0.0:
-            return np.array([MIDDLE, SIDES[0] if direction[1] > 0 else SIDES[1]])
-        return np.array([np.sign(direction[0]) * FRONT, SIDES[0] if direction[1] > 0 else SIDES[1]])
+    def contact(self, line: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """How the hand pushes the puck along `line`: its motion and the puck's centre from the
+        grip site at contact (xy)."""
+        if line[0] == 0.0:  # a side face, the hand moving along y
+            side = SIDES[0] if line[1] > 0 else SIDES[1]
+            return line.copy(), np.array([MIDDLE, side + np.sign(line[1]) * RADIUS])
+        if line[1] == 0.0:  # one fingertip's face, the hand moving along x
+            return line.copy(), np.array([np.sign(line[0]) * (FRONT + RADIUS), FINGER])
+        # The fingertips' outer corner, the hand moving along the diagonal.
+        corner = np.array([np.sign(line[0]) * FRONT, SIDES[0] if line[1] > 0 else SIDES[1]])
+        return line.copy(), corner + line * RADIUS
 
     def finish(self, grip: np.ndarray, goal: np.ndarray) -> None:
         """No more pushes: hold still, clear above the puck."""
@@ -174,13 +186,13 @@ class Slide(Expert):
             self.advance("done")
 
     def start(self, puck: np.ndarray, gap: float) -> np.ndarray:
-        """[m] where the grip site is when the contact point is `gap` behind the puck (xy)."""
-        return puck[:2] - self.push_dir * (RADIUS + gap) - self.contact
+        """[m] where the grip site is when the fingers are `gap` behind the puck (xy)."""
+        return puck[:2] - self.offset - self.motion * gap
 
     def line_up(self, grip: np.ndarray, puck: np.ndarray, rest: np.ndarray, speed: float) -> np.ndarray:
         """To the start behind where the puck will rest (over it if it is in the way), then down
         once the puck has stopped."""
-        start = self.start(np.array([*rest, puck[2]]), self.gap)
+        start = self.start(rest, self.gap)
         off = float(np.linalg.norm(grip[:2] - start))
         if self.descending and off > 2 * self.close:
             self.descending = False
@@ -199,34 +211,45 @@ class Slide(Expert):
         return self.toward(grip, np.array([*start, high]))
 
     def push(self, grip: np.ndarray, puck: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Push with the contact point at the profile's speed; let go once the puck will glide to
-        the target, or where the hand can go no further."""
-        unit = self.push_dir
-        left = float((self.target - puck[:2]) @ unit)
-        along = float(velocity @ unit)
-        ahead = float(glide(velocity) @ unit) + self.lead * along * CONTROL_DT
-        if ahead >= left or (unit[0] > 0 and puck[0] > self.reach and along > 0):
+        """Push at the profile's speed; let go once the puck will glide to the target, or where
+        the hand can go no further."""
+        left = float((self.target - puck[:2]) @ self.line)
+        along = float(velocity @ self.line)
+        ahead = float(glide(velocity) @ self.line) + self.lead * along * CONTROL_DT
+        lost = not self.shot and self.speed > 0.0 and float((puck[:2] - self.offset - grip[:2]) @ self.motion) > self.lost
+        if ahead >= left or lost or (self.motion[0] > 0 and puck[0] > self.reach and along > 0):
             self.advance("watch")
-            return self.toward(grip, np.array([*(grip[:2] - unit * 0.03), puck[2] + 0.02]))
-        need = float(np.linalg.norm(launch(unit * left)))
+            return self.back_off(grip, puck)
+        need = float(launch(self.line * max(left, 0.0)) @ self.line)
         contact = self.start(puck, 0.0)
-        behind = max(float((contact - grip[:2]) @ unit), 0.0)
-        across = contact - grip[:2] - behind * unit
-        if along < self.at_rest:
+        behind = max(float((contact - grip[:2]) @ self.motion), 0.0)
+        across = contact - grip[:2] - behind * self.motion
+        if float(velocity @ self.motion) < self.at_rest and self.speed == 0.0:
             # Close in gently: a hand that hits the puck at speed bounces it off faster still.
-            self.speed = 0.0
-            step = min(behind, self.catch) + self.catch
+            action = self.move(grip, np.array([*(grip[:2] + self.motion * (min(behind, self.catch) + self.catch)
+                                                 + across), puck[2]]))
         else:
-            top = self.fast if self.shot else self.slow
-            self.speed = min(self.speed + self.ramp, top, max(need, 0.1))
-            # The hand lags its target (it covers about 1 / `lag` of the offset per step).
-            step = behind + self.lag * (self.speed + self.feedback * (self.speed - along)) * CONTROL_DT
-        target = grip[:2] + unit * max(step, 0.0) + across
-        return self.toward(grip, np.array([*target, puck[2]]))
+            # Open loop: the puck ends up moving at about `strike` times the action's size.
+            # ...and a puck slower than that gets more (the stretched arm is slower).
+            along = float(velocity @ self.line)
+            want = self.profile * need + (self.feedback * (need - along) if along > self.at_rest else 0.0)
+            self.speed = min(self.speed + self.ramp, max(want, 0.0) / self.strike, 1.0)
+            action = self.move(grip, np.array([*(grip[:2] + across), puck[2]]))
+            action[:2] += self.motion * self.speed
+        return np.append(np.clip(action, -1.0, 1.0), -1.0)
+
+    def back_off(self, grip: np.ndarray, puck: np.ndarray) -> np.ndarray:
+        """Away from the puck, back along the push and up a little."""
+        return self.toward(grip, np.array([*(grip[:2] - self.motion * 0.03), puck[2] + 0.02]))
 
     def toward(self, grip: np.ndarray, target: np.ndarray) -> np.ndarray:
         """The action moving the grip site towards `target`, fingers closed."""
-        return np.append(self.move(grip, target), -1.0)
+        error = target - grip
+        if np.linalg.norm(error) < 0.02:
+            self.bias = np.clip(self.bias + self.integral * error, -0.02, 0.02)
+        else:
+            self.bias[:] = 0.0
+        return np.append(self.move(grip, target + self.bias), -1.0)
 
 
 BOX = (np.array([-0.0164, SIDES[1]]), np.array([FRONT, SIDES[0]]))
