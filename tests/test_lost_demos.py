@@ -56,3 +56,41 @@ def test_deleting_a_lock_file_does_not_let_a_second_collector_in(tmp_path: pathl
         first.send_signal(signal.SIGTERM)
         first.communicate(timeout=60)
     assert first.returncode == 128 + signal.SIGTERM
+
+
+def _children(pid: int) -> set[int]:
+    found: set[int] = set()
+    for task in pathlib.Path(f"/proc/{pid}/task").iterdir():
+        found |= {int(c) for c in (task / "children").read_text().split()}
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except FileNotFoundError:
+        return False
+    return state not in ("Z", "X")
+
+
+def test_render_workers_die_with_a_killed_collector(tmp_path: pathlib.Path) -> None:
+    import time
+
+    command = [sys.executable, "-u", "-m", "fetch.cli", "collect", "--env", "Reach-v2", "--device", "expert",
+               "--render", "none", "--episodes", "1000", "--cameras", "front", "--image-size", "32",
+               "--out", str(tmp_path / "demos")]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    saves = 0
+    for line in proc.stdout:
+        saves += line.startswith("saved ")
+        if saves >= 2:
+            break
+    children = _children(proc.pid)
+    assert children, "the collector should have started render workers"
+    proc.kill()
+    proc.communicate(timeout=30)
+    deadline = time.monotonic() + 20
+    while any(_alive(c) for c in children) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [c for c in children if _alive(c)], "render workers outlived the collector"

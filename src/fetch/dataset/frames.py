@@ -9,6 +9,8 @@ from __future__ import annotations
 import concurrent.futures
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -83,7 +85,20 @@ class StateRenderer:
 _process_renderer: list[StateRenderer] = []
 
 
-def _start_process(env_id: str, env_kwargs: dict[str, Any], size: int, nice: int) -> None:
+def _exit_with_parent(parent: int, period: float = 0.5) -> None:
+    """End this worker once its parent is gone (SIGKILLed collectors left workers stuck writing to a
+    dead pipe, ~276 MB each, forever). A watch on the parent's pid, not PR_SET_PDEATHSIG: that fires
+    when the *thread* that started the worker ends, and the writer's thread starts some of them."""
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(period)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="fetch-exit-with-parent", daemon=True).start()
+
+
+def _start_process(env_id: str, env_kwargs: dict[str, Any], size: int, nice: int, parent: int) -> None:
+    _exit_with_parent(parent)
     # Software GL (llvmpipe) starts a thread per core in every process; one thread each keeps
     # parallel workers (and a collector's control loop) from contending, unless the user says otherwise.
     os.environ.setdefault("LP_NUM_THREADS", "1")
@@ -103,7 +118,7 @@ class RenderPool:
     def __init__(self, env_id: str, env_kwargs: dict[str, Any], size: int, workers: int = 1, nice: int = 0) -> None:
         self._pool = concurrent.futures.ProcessPoolExecutor(
             workers, mp_context=multiprocessing.get_context("spawn"),  # no GL or HDF5 state inherited
-            initializer=_start_process, initargs=(env_id, env_kwargs, size, nice))
+            initializer=_start_process, initargs=(env_id, env_kwargs, size, nice, os.getpid()))
 
     def submit(self, states: np.ndarray, cameras: Sequence[str]) -> concurrent.futures.Future[dict[str, np.ndarray]]:
         """Images of every state, per camera ((N, size, size, 3) uint8), when the future is done."""
