@@ -94,3 +94,28 @@ def test_render_workers_die_with_a_killed_collector(tmp_path: pathlib.Path) -> N
     while any(_alive(c) for c in children) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not [c for c in children if _alive(c)], "render workers outlived the collector"
+
+
+def test_the_writer_falls_at_most_max_queued_demos_behind(tmp_path: pathlib.Path) -> None:
+    """A slow disk: commits wait for the writer instead of piling up demos that a crash would lose."""
+    import time
+
+    from fetch.dataset.episode import Demo
+    from fetch.dataset.writer import MAX_QUEUED, BackgroundWriter
+
+    class SlowDisk(BackgroundWriter):
+        def _save(self, name: str, demo: Demo) -> None:
+            time.sleep(0.02)
+
+    writer = SlowDisk(tmp_path / "out", None)
+    writer._start()
+    waits = []
+    for _ in range(3 * MAX_QUEUED):
+        start = time.perf_counter()
+        writer.commit(Demo(arrays={}, attrs={}))
+        waits.append(time.perf_counter() - start)
+        assert writer.behind <= MAX_QUEUED
+    writer.close()
+    assert writer.saved == 3 * MAX_QUEUED
+    assert writer.most_behind == MAX_QUEUED
+    assert max(waits) > 0.01  # the last commits waited for the disk

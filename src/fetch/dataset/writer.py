@@ -133,6 +133,11 @@ def write_demo_group(group: h5py.Group, demo: Demo) -> None:
         group.create_dataset(key, data=array, **options)
 
 
+MAX_QUEUED = 8
+"""Demos that may wait to be saved; `commit` then waits for the writer. Unbounded, a slow disk let
+the writer fall 12 demos behind, and a SIGKILL then lost them all (each is an attempt of a person)."""
+
+
 def lock_directory(directory: pathlib.Path, alternative: str) -> Any:
     """Hold `directory` itself exclusively (an flock on the directory, until `unlock_directory`);
     DatasetError if another collector or tool holds it. `alternative` completes the message
@@ -248,7 +253,9 @@ class BackgroundWriter:
         self._next_index = 0
         self.error: BaseException | None = None
         self._pending: list[str] = []
-        self._queue: queue.Queue[tuple[str, Demo] | None] = queue.Queue()
+        self._queue: queue.Queue[tuple[str, Demo] | None] = queue.Queue(MAX_QUEUED)
+        self.most_behind = 0
+        """the most demos that were ever waiting to be saved."""
         self._thread = threading.Thread(target=self._run, name="fetch-dataset-writer", daemon=True)
 
     def _start(self) -> None:
@@ -277,8 +284,14 @@ class BackgroundWriter:
             raise DatasetError(f"saving to {self.out_dir} failed earlier: {self.error}") from self.error
         name = self.demo_name(self._next_index)
         self._next_index += 1
-        self._queue.put((name, demo))
+        self._queue.put((name, demo))  # waits while MAX_QUEUED demos are already waiting
+        self.most_behind = max(self.most_behind, self._queue.qsize())
         return name
+
+    @property
+    def behind(self) -> int:
+        """Demos committed but not yet saved."""
+        return self._queue.qsize()
 
     def _run(self) -> None:
         for name in self._pending:  # saved by an earlier session that stopped before completing them

@@ -16,7 +16,7 @@ import numpy as np
 import fetch
 from fetch.dataset import schema
 from fetch.dataset.episode import Demo, EpisodeBuffer
-from fetch.dataset.writer import BackgroundWriter, DatasetWriter, Header, package_versions
+from fetch.dataset.writer import MAX_QUEUED, BackgroundWriter, DatasetWriter, Header, package_versions
 from fetch.errors import FetchError, UnknownNameError
 from fetch.rendering import check_camera
 from fetch.teleop.devices import DEVICES, Command, Device
@@ -151,6 +151,8 @@ class SessionSummary:
     error: str | None = None
     stopped_by: int | None = None
     """the signal that stopped the session (SIGINT, SIGTERM), if one did."""
+    most_behind: int = 0
+    """the most demos that waited to be saved at once (at most MAX_QUEUED)."""
 
     @property
     def exit_status(self) -> int:
@@ -168,6 +170,8 @@ class SessionSummary:
         rate = f"{self.achieved_hz:.1f} Hz" if self.achieved_hz else "n/a"
         text = (f"{n} attempts, {self.saved} saved this session ({self.total_saved} in {self.out}), "
                 f"success rate {100 * self.success_rate:.0f}%, achieved control rate {rate}")
+        if self.most_behind > 1:
+            text += f"; saving fell up to {self.most_behind} demos behind"
         return text + (f"\nerror: {self.error}" if self.error else "")
 
 
@@ -289,7 +293,8 @@ class Session:
                     self.display.close()
         rates = [a.achieved_hz for a in self.attempts if a.achieved_hz > 0]
         return SessionSummary(self.attempts, self.saved_this_session, self.writer.saved, self.config.out,
-                              float(np.mean(rates)) if rates else 0.0, self.clock.late, error, stopped_by)
+                              float(np.mean(rates)) if rates else 0.0, self.clock.late, error, stopped_by,
+                              self.writer.most_behind)
 
     def attempt(self) -> Attempt:
         """One episode from one reset, recorded; saved if it held success (or --keep-failures)."""
@@ -351,6 +356,8 @@ class Session:
             demo = buf.demo({"seed": seed, "success": success, "env_id": cfg.env_id, "device": self.device.name,
                              "attempt": number, "control_hz": self.clock.period and 1.0 / self.clock.period,
                              "achieved_hz": achieved, "started": started, "ended": time.time()})
+            if self.writer.behind >= MAX_QUEUED:
+                self.log(f"saving is {self.writer.behind} demos behind; waiting for the writer")
             saved_as = self.writer.commit(demo)
             self.saved_this_session += 1
         return Attempt(number, seed, t, success, ended_by, saved_as, achieved)
@@ -362,4 +369,5 @@ class Session:
             env_id=self.config.env_id, attempt=number, saved=self.writer.saved, target=self.config.episodes,
             step=step, max_steps=self.config.max_steps, success=info.get("is_success", 0.0) >= 1.0, held=held,
             hold_needed=self.config.success_hold_steps, gripper_closed=self._gripper_closed,
-            precision=command.precision, status=command.status))
+            precision=command.precision,
+            status=command.status or (f"saving: {self.writer.behind} queued" if self.writer.behind else "")))
