@@ -46,8 +46,8 @@ def abuse(env_id: str, steps: int, seed: int) -> dict[str, object]:
             if depth > worst_depth:
                 g1, g2 = int(d.contact.geom1[i]), int(d.contact.geom2[i])
                 worst_depth = depth
-                depth_where = f"{m.geom(g1).name or m.body(m.geom_bodyid[g1]).name} / " \
-                              f"{m.geom(g2).name or m.body(m.geom_bodyid[g2]).name} (seed {episode_seed}, step {step % 50})"
+                names = [m.geom(g).name or m.body(m.geom_bodyid[g]).name for g in (g1, g2)]
+                depth_where = f"{names[0]} / {names[1]} (seed {episode_seed}, step {step % 50})"
         for j in free:
             speed = float(np.linalg.norm(d.qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + 3]))
             if speed > worst_speed:

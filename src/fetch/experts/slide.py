@@ -46,7 +46,47 @@ MIDDLE = -0.001
 FINGER = 0.012
 """[m] where the puck's centre is across the hand (y) from the grip site when one fingertip pushes
 it along x: on the +y fingertip (0.8 to 15.2 mm), off the slot between the two and off its corner."""
+CORNER = 0.0088
+"""[m] ...and how far past the fingers' side it is when their corner pushes it along the diagonal."""
 
+
+
+STRIKE_STEPS = 2
+"""[steps] a strike is this many steps of one action, from rest 1 cm behind the puck."""
+_SIZES = (0.15, 0.3, 0.5, 0.7, 0.9, 1.0)
+_ROWS = (1.0, 1.15, 1.2, 1.25, 1.3, 1.36)
+"""[m] the puck's x where the strikes below were measured: the arm weakens as it stretches."""
+_ALONG_X = ((0.0, 0.055, 0.178, 0.328, 0.535, 0.645),
+            (0.0, 0.055, 0.168, 0.317, 0.522, 0.616),
+            (0.0, 0.044, 0.135, 0.252, 0.408, 0.494),
+            (0.0, 0.020, 0.109, 0.218, 0.348, 0.442),
+            (0.0, 0.001, 0.060, 0.142, 0.267, 0.337),
+            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+_ALONG_DIAGONAL = ((0.0, 0.022, 0.077, 0.167, 0.288, 0.350),
+                   (0.0, 0.024, 0.077, 0.167, 0.293, 0.360),
+                   (0.0, 0.019, 0.065, 0.139, 0.237, 0.287),
+                   (0.0, 0.008, 0.047, 0.111, 0.195, 0.275),
+                   (0.0, 0.000, 0.030, 0.060, 0.127, 0.171),
+                   (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+
+
+def _strike_table(x: float, diagonal: bool) -> np.ndarray:
+    """[m] how far a strike of each of `_SIZES` sends a puck at rest at `x` (per axis on a diagonal)."""
+    rows = np.asarray(_ALONG_DIAGONAL if diagonal else _ALONG_X)
+    return np.array([np.interp(x, _ROWS, rows[:, i]) for i in range(len(_SIZES))])
+
+
+def strike_size(distance: float, x: float, diagonal: bool) -> float:
+    """The action size whose strike sends a puck at rest at `x` [m] `distance` [m] (along x, or
+    along the diagonal) before it stops; 1 if that is beyond any strike."""
+    per_axis = distance / np.sqrt(2.0) if diagonal else distance
+    return float(np.interp(per_axis, _strike_table(x, diagonal), _SIZES))
+
+
+def strike_reach(x: float, diagonal: bool) -> float:
+    """[m] the furthest a strike sends a puck at rest at `x` [m] (along x, or along the diagonal)."""
+    furthest = float(_strike_table(x, diagonal)[-1])
+    return furthest * np.sqrt(2.0) if diagonal else furthest
 
 
 def glide(velocity: np.ndarray) -> np.ndarray:
@@ -78,7 +118,7 @@ class Slide(Expert):
     """[m] the goal counts as on a diagonal (or an axis) from the puck within this across."""
     gap = 0.010
     """[m] free space between the fingers and the puck where the hand comes down."""
-    hover = 0.05
+    hover = 0.045
     """[m] how high above the puck's centre the hand crosses over it."""
     margin = 0.006
     """[m] the fingers pass the puck at least this far off when they stay low."""
@@ -116,7 +156,6 @@ class Slide(Expert):
         self.target = np.zeros(2)
         self.shot = False
         self.speed = 0.0
-        self.descending = False
         self.hold = np.zeros(3)
         self.bias = np.zeros(3)
         self.pushes = 0
@@ -129,7 +168,7 @@ class Slide(Expert):
         rest = puck[:2] + glide(velocity)
         if self.stage == "watch" and self.timer < 2:
             return self.back_off(grip, puck)
-        if self.stage in ("start", "watch", "done") or (self.stage == "line_up" and not self.descending):
+        if self.stage in ("start", "watch", "done") or self.stage == "line_up":
             self.plan(rest, goal, grip)
         if self.stage == "done":
             return self.toward(grip, self.hold)
@@ -152,32 +191,55 @@ class Slide(Expert):
             line, target, shot = diagonal, goal[:2], True
         elif abs(dx) < self.on_line:
             line, target, shot = np.array([0.0, sy]), goal[:2], True
-        elif abs(dy) > abs(dx):
-            # Along y until the goal is on the diagonal.
-            line, target, shot = np.array([0.0, sy]), np.array([rest[0], goal[1] - sy * abs(dx)]), False
-        elif goal[0] - sx * abs(dy) <= self.reach:
-            # Along x until the goal is on the diagonal.
-            line, target, shot = np.array([sx, 0.0]), np.array([goal[0] - sx * abs(dy), rest[1]]), False
         else:
-            # An x push onto the diagonal would end beyond the hand's reach: the diagonal first.
-            line, target, shot = diagonal, np.array([rest[0] + sx * abs(dy), goal[1]]), False
+            line, target, shot = self.two_strikes(rest, goal[:2])
         changed = not np.allclose(line, self.line) or self.stage != "line_up"
         self.line, self.target, self.shot = line, target, shot
         self.motion, self.offset = self.contact(line)
         if changed:
             self.advance("line_up")
 
+    def two_strikes(self, rest: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """The first of two strikes (its line and where it should leave the puck) that take the
+        puck from `rest` to `goal` [m, xy]: an axis then the diagonal, or the diagonal then an
+        axis; the pair the strike tables say fits best, then the one whose first leg is shorter."""
+        dx, dy = goal - rest
+        sx, sy = float(np.sign(dx) or 1.0), float(np.sign(dy) or 1.0)
+        diagonal = np.array([sx, sy]) / np.sqrt(2.0)
+        x0, small, big = float(rest[0]), min(abs(dx), abs(dy)), abs(abs(dx) - abs(dy))
+        plans = []
+        if abs(dx) > abs(dy):
+            # Along x onto the goal's diagonal, or along the diagonal onto the goal's y.
+            plans.append((np.array([sx, 0.0]), np.array([goal[0] - sx * small, rest[1]]),
+                          big, strike_reach(x0, False), small * np.sqrt(2.0), strike_reach(x0 + sx * big, True)))
+            plans.append((diagonal, np.array([rest[0] + sx * small, goal[1]]),
+                          small * np.sqrt(2.0), strike_reach(x0, True), big, strike_reach(x0 + sx * small, False)))
+        else:
+            # Along y onto the goal's diagonal, or along the diagonal onto the goal's x.
+            plans.append((np.array([0.0, sy]), np.array([rest[0], goal[1] - sy * small]),
+                          big, strike_reach(x0, False), small * np.sqrt(2.0), strike_reach(x0, True)))
+            plans.append((diagonal, np.array([goal[0], rest[1] + sy * small]),
+                          small * np.sqrt(2.0), strike_reach(x0, True), big, strike_reach(x0 + sx * small, False)))
+
+        def shortfall(plan: tuple[np.ndarray, np.ndarray, float, float, float, float]) -> tuple[float, float]:
+            first, first_reach, second, second_reach = plan[2:]
+            return max(first - first_reach, second - second_reach, 0.0), first
+
+        line, target = min(plans, key=shortfall)[:2]
+        return line, target, False
+
     def contact(self, line: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """How the hand pushes the puck along `line`: its motion and the puck's centre from the
+        """How the hand strikes the puck along `line`: its motion and the puck's centre from the
         grip site at contact (xy)."""
         if line[0] == 0.0:  # a side face, the hand moving along y
             side = SIDES[0] if line[1] > 0 else SIDES[1]
             return line.copy(), np.array([MIDDLE, side + np.sign(line[1]) * RADIUS])
-        if line[1] == 0.0:  # one fingertip's face, the hand moving along x
-            return line.copy(), np.array([np.sign(line[0]) * (FRONT + RADIUS), FINGER])
-        # The fingertips' outer corner, the hand moving along the diagonal.
-        corner = np.array([np.sign(line[0]) * FRONT, SIDES[0] if line[1] > 0 else SIDES[1]])
-        return line.copy(), corner + line * RADIUS
+        motion = np.array([np.sign(line[0]), 0.0])
+        if line[1] == 0.0:  # one fingertip's face
+            across = FINGER
+        else:  # a fingertip's outer corner, this far past its side
+            across = SIDES[0] + CORNER if line[1] > 0 else SIDES[1] - CORNER
+        return motion, np.array([np.sign(line[0]) * (FRONT + RADIUS), across])
 
     def finish(self, grip: np.ndarray, goal: np.ndarray) -> None:
         """No more pushes: hold still, clear above the puck."""
@@ -190,53 +252,42 @@ class Slide(Expert):
         return puck[:2] - self.offset - self.motion * gap
 
     def line_up(self, grip: np.ndarray, puck: np.ndarray, rest: np.ndarray, speed: float) -> np.ndarray:
-        """To the start behind where the puck will rest (over it if it is in the way), then down
-        once the puck has stopped."""
+        """To the start behind where the puck will rest, low if neither the hand's way there nor
+        the puck's way to rest crosses the other, else over the puck; strike once it has stopped."""
         start = self.start(rest, self.gap)
         off = float(np.linalg.norm(grip[:2] - start))
-        if self.descending and off > 2 * self.close:
-            self.descending = False
-        if self.descending or (off < self.close and speed < self.at_rest):
-            self.descending = True
-            if abs(grip[2] - puck[2]) < 0.007:
-                self.speed, self.descending = 0.0, False
-                self.pushes += 1
-                self.advance("push")
+        low = abs(grip[2] - puck[2]) < 0.007
+        gliding = _clear_path(puck[:2], rest, start, RADIUS + self.margin)
+        if low and off < self.close and speed < self.at_rest:
+            self.speed = 0.0
+            self.pushes += 1
+            self.advance("push")
+            return self.toward(grip, np.array([*start, puck[2]]))
+        if gliding and _clear(puck[:2], grip[:2], start, RADIUS + self.margin):
             return self.toward(grip, np.array([*start, puck[2]]))
         high = puck[2] + self.hover
-        if speed < self.at_rest and _clear(puck[:2], grip[:2], start, RADIUS + self.margin):
-            return self.toward(grip, np.array([*start, puck[2]]))
         if grip[2] < high - 0.02:
             return self.toward(grip, np.array([*grip[:2], high]))
         return self.toward(grip, np.array([*start, high]))
 
     def push(self, grip: np.ndarray, puck: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """Push at the profile's speed; let go once the puck will glide to the target, or where
-        the hand can go no further."""
-        left = float((self.target - puck[:2]) @ self.line)
-        along = float(velocity @ self.line)
-        ahead = float(glide(velocity) @ self.line) + self.lead * along * CONTROL_DT
-        lost = not self.shot and self.speed > 0.0 and float((puck[:2] - self.offset - grip[:2]) @ self.motion) > self.lost
-        if ahead >= left or lost or (self.motion[0] > 0 and puck[0] > self.reach and along > 0):
+        """Strike: `STRIKE_STEPS` steps of one action along the motion, sized for the distance."""
+        if self.timer > STRIKE_STEPS:
             self.advance("watch")
             return self.back_off(grip, puck)
-        need = float(launch(self.line * max(left, 0.0)) @ self.line)
+        if self.timer == 1:  # the first step of the push (the line-up's step was the 0th)
+            left = float((self.target - puck[:2]) @ self.line)
+            self.speed = self.size(left, float(puck[0]))
         contact = self.start(puck, 0.0)
-        behind = max(float((contact - grip[:2]) @ self.motion), 0.0)
+        behind = float((contact - grip[:2]) @ self.motion)
         across = contact - grip[:2] - behind * self.motion
-        if float(velocity @ self.motion) < self.at_rest and self.speed == 0.0:
-            # Close in gently: a hand that hits the puck at speed bounces it off faster still.
-            action = self.move(grip, np.array([*(grip[:2] + self.motion * (min(behind, self.catch) + self.catch)
-                                                 + across), puck[2]]))
-        else:
-            # Open loop: the puck ends up moving at about `strike` times the action's size.
-            # ...and a puck slower than that gets more (the stretched arm is slower).
-            along = float(velocity @ self.line)
-            want = self.profile * need + (self.feedback * (need - along) if along > self.at_rest else 0.0)
-            self.speed = min(self.speed + self.ramp, max(want, 0.0) / self.strike, 1.0)
-            action = self.move(grip, np.array([*(grip[:2] + across), puck[2]]))
-            action[:2] += self.motion * self.speed
+        action = self.move(grip, np.array([*(grip[:2] + across), puck[2]]))
+        action[:2] += self.motion * self.speed
         return np.append(np.clip(action, -1.0, 1.0), -1.0)
+
+    def size(self, distance: float, x: float) -> float:
+        """The strike's action size to send the puck at rest at `x` [m] `distance` [m] along the line."""
+        return strike_size(distance, x, diagonal=bool(self.line[0] != 0.0 and self.line[1] != 0.0))
 
     def back_off(self, grip: np.ndarray, puck: np.ndarray) -> np.ndarray:
         """Away from the puck, back along the push and up a little."""
@@ -254,6 +305,15 @@ class Slide(Expert):
 
 BOX = (np.array([-0.0164, SIDES[1]]), np.array([FRONT, SIDES[0]]))
 """[m] the closed fingers' extent (xy) from the grip site: low, high corners."""
+
+
+def _clear_path(puck: np.ndarray, rest: np.ndarray, grip: np.ndarray, distance: float) -> bool:
+    """Whether a puck gliding from `puck` to `rest` stays `distance` [m] from fingers at `grip` (xy)."""
+    for t in np.linspace(0.0, 1.0, 9):
+        local = puck + t * (rest - puck) - grip
+        if np.linalg.norm(local - np.clip(local, BOX[0], BOX[1])) < distance:
+            return False
+    return True
 
 
 def _clear(puck: np.ndarray, a: np.ndarray, b: np.ndarray, distance: float) -> bool:
