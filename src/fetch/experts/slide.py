@@ -124,6 +124,8 @@ class Slide(Expert):
     """[m] the fingers pass the puck at least this far off when they stay low."""
     close = 0.006
     """[m] the hand counts as at the start of a push within this."""
+    aligned = 0.0025
+    """[m] ...and within this across the strike (the face or corner it strikes with is a few mm wide)."""
     at_rest = 0.05
     """[m/s] a puck slower than this counts as stopped."""
     catch = 0.006
@@ -258,7 +260,8 @@ class Slide(Expert):
         off = float(np.linalg.norm(grip[:2] - start))
         low = abs(grip[2] - puck[2]) < 0.007
         gliding = _clear_path(puck[:2], rest, start, RADIUS + self.margin)
-        if low and off < self.close and speed < self.at_rest:
+        across = float(np.linalg.norm((grip[:2] - start) - ((grip[:2] - start) @ self.motion) * self.motion))
+        if low and off < self.close and across < self.aligned and speed < self.at_rest:
             self.speed = 0.0
             self.pushes += 1
             self.advance("push")
