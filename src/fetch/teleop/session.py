@@ -20,7 +20,7 @@ from fetch.dataset.writer import MAX_QUEUED, BackgroundWriter, DatasetWriter, He
 from fetch.errors import FetchError, UnknownNameError
 from fetch.rendering import check_camera
 from fetch.teleop.devices import DEVICES, Command, Device
-from fetch.teleop.stopping import Stopped, signals_held
+from fetch.teleop.stopping import Stopped, acting_on_stop, raise_if_stopped, signals_held
 
 FORMATS = ("hdf5", "npz")
 RENDER_CHOICES = ("auto", "human", "rgb_array", "none")
@@ -278,6 +278,7 @@ class Session:
                 if attempt.ended_by == "quit":
                     break
         except KeyboardInterrupt as e:
+            acting_on_stop()
             stopped_by = e.signum if isinstance(e, Stopped) else int(signal.SIGINT)
             self.log(f"interrupted ({signal.Signals(stopped_by).name}): finishing the saves")
         except FetchError as e:  # the writer or the viewer failed: stop collecting, keep what is saved
@@ -313,6 +314,7 @@ class Session:
         while True:
             self._show(number, buf.length, info, held, command)
             deadline = self.clock.wait()
+            raise_if_stopped()
             polled = time.perf_counter()
             command = self.device.poll(obs)
             if command.switch_camera and self.display is not None:

@@ -20,30 +20,60 @@ class Stopped(KeyboardInterrupt):
         self.signum = signum
 
 
+class _State:
+    depth = 0
+    requested: int | None = None
+    """the stop signal received and not yet acted on."""
+    handled = False
+    """the stop is being acted on (the saves are being finished)."""
+
+
+_STATE = _State()
+
+
+def _stop(signum: int, frame: FrameType | None) -> None:
+    if _STATE.handled:
+        os.write(2, b"still finishing the saves; they will complete, then the session stops\n")
+        return
+    _STATE.requested = signum
+    raise Stopped(signum)
+
+
+def raise_if_stopped() -> None:
+    """Raise `Stopped` if a stop signal arrived and was not acted on: the exception its handler raised
+    can be lost (Python ignores exceptions raised in a weakref callback or `__del__`), so the control
+    loop asks once per tick."""
+    if _STATE.requested is not None and not _STATE.handled:
+        raise Stopped(_STATE.requested)
+
+
+def acting_on_stop() -> None:
+    """The session caught the stop and finishes its saves: later stop signals only say so."""
+    if _STATE.depth:
+        _STATE.handled = True
+
+
 @contextlib.contextmanager
 def stop_on_signals() -> Iterator[None]:
-    """While inside, the first SIGINT or SIGTERM raises `Stopped` in the main thread, and later ones
-    (until the process exits) only say that the saves are being finished. SDL, which turns SIGTERM
-    into a quit event that a headless session never reads, is told to leave signals alone."""
+    """While inside, SIGINT and SIGTERM raise `Stopped` in the main thread until the session acts on
+    the stop (`acting_on_stop`); later ones, until the process exits, only say that the saves are
+    being finished. SDL, which turns SIGTERM into a quit event that a headless session never reads,
+    is told to leave signals alone."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    stopping: list[int] = []
-
-    def stop(signum: int, frame: FrameType | None) -> None:
-        if stopping:
-            os.write(2, b"still finishing the saves; they will complete, then the session stops\n")
-            return
-        stopping.append(signum)
-        raise Stopped(signum)
-
+    outermost = _STATE.depth == 0
+    if outermost:
+        _STATE.requested, _STATE.handled = None, False
     hint = os.environ.get("SDL_NO_SIGNAL_HANDLERS")
     os.environ["SDL_NO_SIGNAL_HANDLERS"] = "1"  # read when pygame starts SDL
-    old = {s: signal.signal(s, stop) for s in STOP_SIGNALS}
+    old = {s: signal.signal(s, _stop) for s in STOP_SIGNALS}
+    _STATE.depth += 1
     try:
         yield
     finally:
-        if not stopping:
+        _STATE.depth -= 1
+        if _STATE.requested is None:
             # After a stop the handlers stay: the process is on its way out, and a second Ctrl-C
             # arriving while it prints the summary or exits would otherwise end it with a traceback.
             for s, handler in old.items():
