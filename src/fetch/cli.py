@@ -145,6 +145,7 @@ def run_video(args: argparse.Namespace) -> int:
     from fetch.dataset import open_dataset
     from fetch.dataset.frames import StateRenderer
     from fetch.dataset.npz import load_npz, npz_files
+    from fetch.dataset.reader import require_valid
     from fetch.dataset.video import check_video_path, write_video
     from fetch.errors import FetchError
 
@@ -160,8 +161,10 @@ def run_video(args: argparse.Namespace) -> int:
             states_of = {d.path.stem: d.arrays["states"] for d in demos}
         else:
             ds = stack.enter_context(open_dataset(args.file))
+            names = ds.select(args.demo)
+            require_valid(ds, names, images=False)
             env_id, env_kwargs = ds.env_id, ds.env_kwargs
-            states_of = {name: ds.demo(name)["states"] for name in ds.select(args.demo)}
+            states_of = {name: ds.demo(name)["states"] for name in names}
         with StateRenderer(env_id, env_kwargs, args.size, args.size) as renderer:
             renderer.check_camera(args.camera)
             fps = args.fps or 1.0 / renderer.env.dt
@@ -195,6 +198,7 @@ def _check(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
     from fetch._progress import progress
     from fetch.dataset import open_dataset
     from fetch.dataset.npz import check_npz, load_npz, npz_files
+    from fetch.dataset.reader import require_valid
     from fetch.dataset.replay import check_demo, make_replay_env
 
     if files := npz_files(args.file):
@@ -207,6 +211,7 @@ def _check(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
     else:
         ds = stack.enter_context(open_dataset(args.file))
         names = ds.select(args.demo)
+        require_valid(ds, names, images=False)
         env = make_replay_env(ds)
         checks = (check_demo(ds, name, env) for name in names)
     failures = 0
@@ -302,7 +307,10 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return _run(_parser().parse_args(argv))
+    from fetch.teleop.stopping import stop_on_signals
+
+    with stop_on_signals():  # from the start: a Ctrl-C or SIGTERM while loading ends cleanly too
+        return _run(_parser().parse_args(argv))
 
 
 def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_demo.py") -> int:
@@ -311,7 +319,10 @@ def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_d
                                 "every flag with its meaning; the same as `gym-fetch collect`.")
     add_collect_arguments(p)
     p.set_defaults(run=run_collect, command="collect")
-    return _run(p.parse_args(argv), prog)
+    from fetch.teleop.stopping import stop_on_signals
+
+    with stop_on_signals():
+        return _run(p.parse_args(argv), prog)
 
 
 def _run(args: argparse.Namespace, prog: str | None = None) -> int:
