@@ -162,7 +162,32 @@ def test_render_obs_failure_leaves_the_dataset_as_it_was(plain: pathlib.Path,
     before = everything(plain)
     index = (plain / "demos.hdf5").read_bytes()
     assert main(["render-obs", str(plain), "--camera", "front", "--size", "16"]) == 2
-    assert "state has shape" in capsys.readouterr().err
+    assert "demo_2: states has shape" in capsys.readouterr().err  # refused before any rendering
+    assert (plain / "demos.hdf5").read_bytes() == index
+    assert_same(before, everything(plain))
+    assert not [p for p in plain.rglob("*.tmp")]
+
+
+def test_render_obs_failing_midway_leaves_the_dataset_as_it_was(plain: pathlib.Path,
+                                                                 capsys: pytest.CaptureFixture[str],
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    from fetch.dataset import render_obs
+    from fetch.errors import DatasetError
+
+    store = render_obs._store
+    stored: list[str] = []
+
+    def store_then_fail(group: h5py.Group, key: str, images: np.ndarray) -> None:
+        if stored:  # the second demo: the first one's copy is already edited
+            raise DatasetError("the disk is full (simulated)")
+        stored.append(group.name)
+        store(group, key, images)
+
+    monkeypatch.setattr(render_obs, "_store", store_then_fail)
+    before = everything(plain)
+    index = (plain / "demos.hdf5").read_bytes()
+    assert main(["render-obs", str(plain), "--camera", "front", "--size", "16", "--workers", "1"]) == 2
+    assert "disk is full" in capsys.readouterr().err and stored
     assert (plain / "demos.hdf5").read_bytes() == index
     assert_same(before, everything(plain))
     assert not [p for p in plain.rglob("*.tmp")]

@@ -19,7 +19,7 @@ import numpy as np
 
 from fetch._progress import progress
 from fetch.dataset import schema
-from fetch.dataset.reader import Dataset, open_dataset, resolve
+from fetch.dataset.reader import Dataset, open_dataset, require_valid, resolve
 from fetch.dataset.writer import editing, package_versions, replacing, rewritten
 from fetch.errors import DatasetError, FetchError
 
@@ -84,6 +84,8 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
                 raise FetchError(f"{given} and {seen[key]} are the same dataset ({key}); merging it with itself "
                                  "would duplicate every demo")
             seen[key] = str(given)
+        for source in sources:  # nothing a tool flags as invalid is passed on
+            require_valid(source)
         target = _out_path(out, [s.path for s in sources], force)
         first = sources[0]
         for other in sources[1:]:
@@ -157,6 +159,7 @@ def split(path: str | os.PathLike[str], valid: float, seed: int = 0) -> dict[str
     index = resolve(path)
     with editing(index):
         with open_dataset(index) as ds:
+            require_valid(ds)
             masks = ds.masks()
             successful = [n for n in ds.demo_names if bool(ds.demo(n).attrs["success"])]
             failed = [n for n in ds.demo_names if n not in set(successful)]

@@ -15,7 +15,7 @@ import numpy as np
 
 from fetch.dataset import npz, schema
 from fetch.dataset.episode import Demo
-from fetch.dataset.reader import Dataset, open_dataset
+from fetch.dataset.reader import Dataset, open_dataset, require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError
 
 FORMATS = ("minari", "npz")
@@ -114,6 +114,7 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
     import gymnasium as gym
 
     with open_dataset(ds_path) as ds:
+        require_valid(ds)  # nothing a tool flags as invalid is passed on
         chosen = select_demos(ds, demos)
         devices = _devices(chosen)
         dataset_id = dataset_id or default_dataset_id(ds.env_id, devices, demos)
@@ -231,6 +232,7 @@ def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
 
     out = pathlib.Path(out_dir)
     with open_dataset(ds_path) as ds:
+        require_valid(ds)  # nothing a tool flags as invalid is passed on
         chosen = select_demos(ds, demos)
         if out.is_dir() and not force:
             present = sorted(out.glob("*.npz"))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -13,6 +14,14 @@ import numpy as np
 
 from fetch.dataset import schema
 from fetch.errors import DatasetError
+
+READ_ERRORS: tuple[type[Exception], ...] = (OSError, KeyError, RuntimeError, ValueError, TypeError)
+"""What h5py raises on a damaged file; which one depends on the structure a damaged byte hit."""
+
+
+def one_line(e: BaseException | str) -> str:
+    """An error's message on one line (HDF5's span several)."""
+    return " ".join(str(e).split()) or type(e).__name__
 
 
 def resolve(path: str | os.PathLike[str]) -> pathlib.Path:
@@ -28,23 +37,46 @@ class Dataset:
         self.path = path
         self.file = file
         data = file["data"]
-        self.data_attrs: dict[str, Any] = {k: _plain(v) for k, v in data.attrs.items()}
         try:
-            env_args = json.loads(self.data_attrs["env_args"])
-            self.env_id: str = env_args["env_name"]
-            self.env_kwargs: dict[str, Any] = dict(env_args.get("env_kwargs", {}))
+            self.data_attrs: dict[str, Any] = {k: _plain(v) for k, v in data.attrs.items()}
+            keys = list(data.keys())
+        except READ_ERRORS as e:
+            raise DatasetError(f"{path}: its data attributes or list of demos cannot be read (the file is corrupt: "
+                               f"{one_line(e)})") from e
+        env_args = self._json_attr("env_args", None)
+        if not isinstance(env_args, dict) or not isinstance(env_args.get("env_name"), str) \
+                or not isinstance(env_args.get("env_kwargs", {}), dict):
+            raise DatasetError(f"{path}: data.attrs['env_args'] is {self.data_attrs.get('env_args')!r}, not the JSON "
+                               "object {env_name: str, type, env_kwargs: object} robomimic reads")
+        self.env_id: str = env_args["env_name"]
+        self.env_kwargs: dict[str, Any] = dict(env_args.get("env_kwargs", {}))
+        try:
             self.layout = schema.layout_from_json(self.data_attrs["layout"])
-            self.settings: dict[str, Any] = json.loads(self.data_attrs.get("settings", "{}"))
-            self.versions: dict[str, str] = json.loads(self.data_attrs.get("versions", "{}"))
         except (KeyError, ValueError, TypeError) as e:
-            raise DatasetError(f"{path}: its data attributes are incomplete or malformed ({e!r})") from e
+            raise DatasetError(f"{path}: data.attrs['layout'] is missing or malformed ({e!r})") from e
+        self.settings: dict[str, Any] = self._json_attr("settings", {})
+        self.versions: dict[str, str] = self._json_attr("versions", {})
+        for key, value in (("settings", self.settings), ("versions", self.versions)):
+            if not isinstance(value, dict):
+                raise DatasetError(f"{path}: data.attrs['{key}'] is {self.data_attrs[key]!r}, not a JSON object")
         names = []
-        for name in data.keys():
+        for name in keys:
             try:
                 names.append((schema.demo_index(name), name))
             except ValueError:
                 continue  # validate() reports it
         self.demo_names: list[str] = [n for _, n in sorted(names)]
+
+    def _json_attr(self, key: str, default: Any) -> Any:
+        """`data.attrs[key]` decoded from JSON (`default` when absent); DatasetError naming it if it is not JSON."""
+        if key not in self.data_attrs:
+            if default is None:
+                raise DatasetError(f"{self.path}: data.attrs['{key}'] is missing")
+            return default
+        try:
+            return json.loads(self.data_attrs[key])
+        except (ValueError, TypeError) as e:
+            raise DatasetError(f"{self.path}: data.attrs['{key}'] is not valid JSON ({one_line(e)})") from e
 
     def __enter__(self) -> Dataset:
         return self
@@ -61,10 +93,13 @@ class Dataset:
                 "settings": self.settings, "model_hash": self.data_attrs.get("model_hash")}
 
     def masks(self) -> dict[str, list[str]]:
-        if "mask" not in self.file:
-            return {}
-        return {key: [n.decode() if isinstance(n, bytes) else str(n) for n in ds[()]]
-                for key, ds in self.file["mask"].items()}
+        try:
+            if "mask" not in self.file:
+                return {}
+            return {key: [n.decode() if isinstance(n, bytes) else str(n) for n in ds[()]]
+                    for key, ds in self.file["mask"].items()}
+        except READ_ERRORS as e:
+            raise DatasetError(f"{self.path}: its masks cannot be read (the file is corrupt: {one_line(e)})") from e
 
     def demo(self, name: str) -> h5py.Group:
         """The group `data/<name>`; DatasetError if it is missing or its file cannot be read."""
@@ -74,12 +109,14 @@ class Dataset:
                                f"({', '.join(self.demo_names[:3])}{', ...' if len(self.demo_names) > 3 else ''})")
         try:
             group = data[name]
-        except (KeyError, OSError) as e:
-            link = data.get(name, getlink=True)
+        except READ_ERRORS as e:
+            link = None
+            with contextlib.suppress(*READ_ERRORS):
+                link = data.get(name, getlink=True)
             where = ""
             if isinstance(link, h5py.ExternalLink):
                 where = f" (its file {link.filename} next to {self.path.name})"
-            raise DatasetError(f"{self.path}: demo {name!r} cannot be read{where}: {e}") from e
+            raise DatasetError(f"{self.path}: demo {name!r} cannot be read{where}: {one_line(e)}") from e
         if not isinstance(group, h5py.Group):
             raise DatasetError(f"{self.path}: data/{name} is not a group")
         return group
@@ -98,10 +135,18 @@ class Dataset:
         """Every array of one demo, loaded, keyed by its path in the demo group."""
         from fetch.dataset.writer import read_demo_group
 
-        return read_demo_group(self.demo(name)).arrays
+        group = self.demo(name)
+        try:
+            return read_demo_group(group).arrays
+        except READ_ERRORS as e:
+            raise DatasetError(f"{self.path}: demo {name!r} cannot be read: {one_line(e)}") from e
 
     def attrs(self, name: str) -> dict[str, Any]:
-        return {k: _plain(v) for k, v in self.demo(name).attrs.items()}
+        group = self.demo(name)
+        try:
+            return {k: _plain(v) for k, v in group.attrs.items()}
+        except READ_ERRORS as e:
+            raise DatasetError(f"{self.path}: demo {name!r} cannot be read: {one_line(e)}") from e
 
     def select(self, demo: int | str | None) -> list[str]:
         """Demo names for a `--demo` argument: all (None), an index, or a name."""
@@ -133,21 +178,31 @@ def open_dataset(path: str | os.PathLike[str], mode: str = "r") -> Dataset:
     except OSError as e:
         raise DatasetError(f"{p} is not a readable HDF5 file (corrupt, truncated or another format): {e}") from e
     try:
-        data = file.get("data")
-        if not isinstance(data, h5py.Group):
-            raise DatasetError(f"{p} is an HDF5 file but not a demonstration dataset (it has no 'data' group)")
-        fmt = _plain(data.attrs.get("format"))
-        if fmt != schema.FORMAT:
-            raise DatasetError(f"{p} is not a gym-fetch-v2 dataset (data.attrs['format'] is {fmt!r}, expected "
-                               f"{schema.FORMAT!r}); only datasets written by `gym-fetch collect` can be used here")
-        version = int(_plain(data.attrs.get("format_version", 0)))
-        if version > schema.FORMAT_VERSION:
-            raise DatasetError(f"{p} has format version {version}; this gym-fetch-v2 reads up to "
-                               f"{schema.FORMAT_VERSION}: upgrade the package")
-        return Dataset(p, file)
+        return _checked(p, file)
+    except READ_ERRORS as e:
+        file.close()
+        raise DatasetError(f"{p} cannot be read (the file is corrupt: {one_line(e)})") from e
     except BaseException:
         file.close()
         raise
+
+
+def _checked(p: pathlib.Path, file: h5py.File) -> Dataset:
+    data = file.get("data")
+    if not isinstance(data, h5py.Group):
+        raise DatasetError(f"{p} is an HDF5 file but not a demonstration dataset (it has no 'data' group)")
+    fmt = _plain(data.attrs.get("format"))
+    if fmt != schema.FORMAT:
+        raise DatasetError(f"{p} is not a gym-fetch-v2 dataset (data.attrs['format'] is {fmt!r}, expected "
+                           f"{schema.FORMAT!r}); only datasets written by `gym-fetch collect` can be used here")
+    raw = _plain(data.attrs.get("format_version"))
+    if not isinstance(raw, int) or isinstance(raw, bool) or raw < 1:
+        raise DatasetError(f"{p}: data.attrs['format_version'] is {raw!r}, not a version number (1 to "
+                           f"{schema.FORMAT_VERSION})")
+    if raw > schema.FORMAT_VERSION:
+        raise DatasetError(f"{p} has format version {raw}; this gym-fetch-v2 reads up to "
+                           f"{schema.FORMAT_VERSION}: upgrade the package")
+    return Dataset(p, file)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -169,58 +224,91 @@ class Summary:
 
 
 def summarize(ds: Dataset) -> Summary:
+    """The figures of the readable demos (`validate` says what is wrong with the others)."""
+    unreadable: tuple[type[Exception], ...] = (DatasetError, *READ_ERRORS)
     lengths, successes, lows, highs, rates = [], 0, [], [], []
     devices: dict[str, int] = {}
     for name in ds.demo_names:
         try:
             group = ds.demo(name)
             attrs = group.attrs
-            attrs["num_samples"], attrs["success"]  # noqa: B018 (readable? validate() says what is wrong)
-        except (DatasetError, KeyError):
+            length, success = int(attrs["num_samples"]), bool(attrs["success"])
+            actions = np.asarray(group["actions"][()], dtype=np.float64)
+            rate = float(attrs.get("achieved_hz", 0.0))
+            device = str(_plain(attrs.get("device", "?")))
+        except unreadable:
             continue
-        lengths.append(int(attrs["num_samples"]))
-        successes += bool(attrs["success"])
-        actions = group["actions"][()]
-        if len(actions):
+        lengths.append(length)
+        successes += success
+        if actions.size and np.all(np.isfinite(actions)):
             lows.append(float(actions.min()))
             highs.append(float(actions.max()))
-        rates.append(float(attrs.get("achieved_hz", 0.0)))
-        device = str(_plain(attrs.get("device", "?")))
+        rates.append(rate)
         devices[device] = devices.get(device, 0) + 1
+    try:
+        masks = {k: len(v) for k, v in ds.masks().items()}
+    except DatasetError:
+        masks = {}
     return Summary(
         path=ds.path, env_id=ds.env_id, demos=len(lengths), successful=successes, steps=sum(lengths),
         lengths=(min(lengths, default=0), max(lengths, default=0), float(np.mean(lengths)) if lengths else 0.0),
         action_range=(min(lows, default=0.0), max(highs, default=0.0)),
         achieved_hz=float(np.mean(rates)) if rates else 0.0, devices=devices,
-        masks={k: len(v) for k, v in ds.masks().items()}, versions=ds.versions, cameras=ds.layout.cameras)
+        masks=masks, versions=ds.versions, cameras=ds.layout.cameras)
 
 
-def validate(ds: Dataset) -> list[str]:
-    """Every inconsistency found in the file (empty when it is sound); each names the demo and key."""
-    problems: list[str] = []
-    data = ds.file["data"]
-    for name in data.keys():
+def header_problems(ds: Dataset) -> list[str]:
+    """What is wrong with the dataset's description of its env and model: an env id that is not
+    registered, `env_kwargs` the env refuses, a state size other than the env's, a `model_xml` that
+    is not MJCF. Each tool checks these before it uses the file (`require_valid`)."""
+    import gymnasium as gym
+    import mujoco
+
+    import fetch
+
+    problems = []
+    if ds.env_id not in fetch.ENV_IDS:
+        problems.append(f"data.attrs['env_args'] names the env {ds.env_id!r}, which is not one of gym-fetch-v2's: "
+                        f"{', '.join(fetch.ENV_IDS)}")
+    else:
         try:
-            schema.demo_index(name)
-        except ValueError:
-            problems.append(f"data/{name}: not a demo name (demo_<integer>)")
-    total = 0
-    unreadable = set()
-    for name in ds.demo_names:
-        try:
-            group = ds.demo(name)
-        except DatasetError as e:
-            problems.append(str(e))
-            unreadable.add(name)
-            continue
-        missing = [key for key, _ in schema.DEMO_ATTRS if key not in group.attrs]
-        if missing:
-            problems.append(f"{name}: missing attributes {', '.join(missing)}")
-            unreadable.add(name)
-            continue
-        t = int(group.attrs["num_samples"])
-        total += t
-        layout = ds.layout
+            env: Any = gym.make(ds.env_id, **ds.env_kwargs)
+        except Exception as e:  # noqa: BLE001 (the env's own check of its arguments, whatever it raises)
+            problems.append(f"data.attrs['env_args'] has env_kwargs {ds.env_kwargs!r}, which {ds.env_id} refuses: "
+                            f"{one_line(e)}")
+        else:
+            state_size = int(np.asarray(env.unwrapped.get_state()).size)
+            env.close()
+            if state_size != ds.layout.state_size:
+                problems.append(f"data.attrs['layout'] has state_size {ds.layout.state_size}, but {ds.env_id} "
+                                f"states have {state_size} values")
+    for key, kind in schema.DATA_ATTR_KINDS.items():
+        if key in ds.data_attrs or key == "total":
+            problem = schema.kind_problem(ds.data_attrs.get(key), kind)
+            problems += [] if problem is None else [f"data.attrs['{key}'] {problem}"]
+    digest = ds.data_attrs.get("model_hash")
+    if not (isinstance(digest, str) and len(digest) == 64 and all(c in "0123456789abcdef" for c in digest)):
+        problems.append(f"data.attrs['model_hash'] is {digest!r}, not a SHA-256 (64 hexadecimal digits)")
+    xml = ds.data_attrs.get("model_xml")
+    try:
+        mujoco.MjSpec.from_string(xml)  # parsed, not compiled: the meshes' directory is the recording machine's
+    except Exception as e:  # noqa: BLE001 (mujoco raises ValueError or TypeError, by version)
+        problems.append(f"data.attrs['model_xml'] is not the model's MJCF (corrupt or missing: {one_line(e)[:200]})")
+    return problems
+
+
+def _demo_problems(ds: Dataset, name: str, images: bool = True) -> tuple[list[str], int | None]:
+    """What is wrong with one demo (each problem starts with its name), and its steps if they are known."""
+    try:
+        group = ds.demo(name)
+    except DatasetError as e:
+        return [str(e)], None
+    try:
+        attrs = {k: _plain(v) for k, v in group.attrs.items()}
+        attr_problems = schema.check_demo_attrs(attrs)
+        if attr_problems:
+            return [f"{name}: {p}" for p in attr_problems], None
+        t = int(attrs["num_samples"])
         arrays: dict[str, h5py.Dataset] = {}
 
         def visit(path: str, node: Any, into: dict[str, Any] = arrays) -> None:
@@ -228,33 +316,76 @@ def validate(ds: Dataset) -> list[str]:
                 into[path] = node
 
         group.visititems(visit)
-        shape_problems = schema.check_arrays(arrays, layout, t)
-        images = {f"missing {p}/{schema.image_key(c)}" for c in layout.cameras for p in ("obs", "next_obs")}
-        if shape_problems and set(shape_problems) <= images:
-            problems.append(f"{name}: its images are not rendered yet (the collector stopped first): run "
-                            "`gym-fetch collect` on this directory again, or `gym-fetch render-obs --overwrite`")
-            continue
-        if shape_problems:
-            problems += [f"{name}: {p}" for p in shape_problems]
-            continue
-        actions = arrays["actions"][()]
-        if t and (not np.all(np.isfinite(actions)) or np.abs(actions).max() > 1.0):
-            problems.append(f"{name}: actions outside [-1, 1] (robomimic rejects them)")
-        for key, _ in layout.obs_sizes:
-            obs, nxt = arrays[f"obs/{key}"][()], arrays[f"next_obs/{key}"][()]
-            if t > 1 and not np.array_equal(obs[1:], nxt[:-1]):
-                problems.append(f"{name}: next_obs/{key}[t] differs from obs/{key}[t+1]")
-        dones = arrays["dones"][()]
-        if t and (dones[-1] != 1 or dones[:-1].any()):
-            problems.append(f"{name}: dones must be 1 at the last step only")
-        success = bool(group.attrs["success"])
-        if success and t and not arrays["is_success"][()].any():
-            problems.append(f"{name}: marked successful but is_success is never 1")
-        if str(_plain(group.attrs["env_id"])) != ds.env_id:
-            problems.append(f"{name}: env_id {group.attrs['env_id']!r} differs from the dataset's {ds.env_id!r}")
-    if int(ds.data_attrs.get("total", -1)) != total:
+        return _content_problems(ds, name, attrs, arrays, t, images), t
+    except READ_ERRORS as e:
+        try:
+            file, _ = ds.demo_file(name)
+        except READ_ERRORS:
+            file = ds.path
+        where = file.relative_to(ds.path.parent) if file.is_relative_to(ds.path.parent) else file
+        return [f"{name} cannot be read (its file {where} is corrupt: {one_line(e)})"], None
+
+
+def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dict[str, h5py.Dataset], t: int,
+                      images: bool) -> list[str]:
+    layout = ds.layout
+    shape_problems = schema.check_arrays(arrays, layout, t)
+    missing_images = {f"missing {p}/{schema.image_key(c)}" for c in layout.cameras for p in ("obs", "next_obs")}
+    if not images:
+        shape_problems = [p for p in shape_problems if p not in missing_images]
+    elif shape_problems and set(shape_problems) <= missing_images:
+        return [f"{name}: its images are not rendered yet (the collector stopped first): run "
+                "`gym-fetch collect` on this directory again, or `gym-fetch render-obs --overwrite`"]
+    if shape_problems:
+        return [f"{name}: {p}" for p in shape_problems]
+    problems = []
+    actions = arrays["actions"][()]
+    if not np.all(np.isfinite(actions)):
+        problems.append(f"{name}: actions hold NaN or infinite values")
+    elif t and np.abs(actions).max() > 1.0:
+        problems.append(f"{name}: actions outside [-1, 1] (robomimic rejects them)")
+    for key, _ in layout.obs_sizes:
+        obs, nxt = arrays[f"obs/{key}"][()], arrays[f"next_obs/{key}"][()]
+        if not (np.all(np.isfinite(obs)) and np.all(np.isfinite(nxt))):
+            problems.append(f"{name}: obs/{key} or next_obs/{key} hold NaN or infinite values")
+        elif t > 1 and not np.array_equal(obs[1:], nxt[:-1]):
+            problems.append(f"{name}: next_obs/{key}[t] differs from obs/{key}[t+1]")
+    if not np.all(np.isfinite(arrays["states"][()])):
+        problems.append(f"{name}: states hold NaN or infinite values")
+    dones = arrays["dones"][()]
+    if t and (dones[-1] != 1 or dones[:-1].any()):
+        problems.append(f"{name}: dones must be 1 at the last step only")
+    if bool(attrs["success"]) and t and not arrays["is_success"][()].any():
+        problems.append(f"{name}: marked successful but is_success is never 1")
+    if str(attrs["env_id"]) != ds.env_id:
+        problems.append(f"{name}: env_id {attrs['env_id']!r} differs from the dataset's {ds.env_id!r}")
+    return problems
+
+
+def validate(ds: Dataset) -> list[str]:
+    """Every inconsistency found in the file (empty when it is sound); each names the demo and key."""
+    problems = header_problems(ds)
+    try:
+        problems += [f"data/{name}: not a demo name (demo_<integer>)" for name in ds.file["data"].keys()
+                     if not _is_demo_name(name)]
+    except READ_ERRORS as e:
+        problems.append(f"the list of demos cannot be read (the file is corrupt: {one_line(e)})")
+    total = 0
+    unreadable = set()
+    for name in ds.demo_names:
+        found, t = _demo_problems(ds, name)
+        problems += found
+        if t is None:
+            unreadable.add(name)
+        else:
+            total += t
+    recorded = ds.data_attrs.get("total")
+    if not unreadable and isinstance(recorded, int) and recorded != total:
         problems.append(f"data.attrs['total'] is {ds.data_attrs.get('total')}, the demos hold {total} steps")
-    masks = ds.masks()
+    try:
+        masks = ds.masks()
+    except DatasetError as e:
+        return [*problems, str(e)]
     names = set(ds.demo_names)
     for key, listed in masks.items():
         problems += [f"mask/{key} lists {n}, which is not in data" for n in listed if n not in names]
@@ -273,3 +404,33 @@ def validate(ds: Dataset) -> list[str]:
                 if success != (key != "failed"):
                     problems.append(f"{n} is in mask/{key} but its success is {success}")
     return problems
+
+
+def _is_demo_name(name: str) -> bool:
+    try:
+        schema.demo_index(name)
+    except ValueError:
+        return False
+    return True
+
+
+def require_valid(ds: Dataset, names: list[str] | None = None, *, images: bool = True) -> None:
+    """What every tool does before it uses a dataset: DatasetError, one line naming the file and its
+    first problem, unless the file is sound. `names`: only these demos (and the file's header and
+    masks) must be; None: the whole file, as `gym-fetch info` validates it. `images=False`: demos
+    whose camera images are not rendered yet pass (replay and render-obs do not read them)."""
+    if names is None:
+        problems = validate(ds)
+    else:
+        problems = header_problems(ds)
+        try:
+            ds.masks()
+        except DatasetError as e:
+            problems.append(str(e))
+        for name in names:
+            problems += _demo_problems(ds, name, images)[0]
+    if problems:
+        first = one_line(problems[0])
+        first = first if first.startswith(str(ds.path)) else f"{ds.path}: {first}"
+        more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
+        raise DatasetError(f"{first}{more}; `gym-fetch info {ds.path}` lists what is wrong")

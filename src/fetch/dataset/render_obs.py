@@ -22,7 +22,7 @@ import numpy as np
 
 from fetch._progress import progress
 from fetch.dataset import schema
-from fetch.dataset.reader import open_dataset, resolve
+from fetch.dataset.reader import open_dataset, require_valid, resolve
 from fetch.dataset.writer import Rewrites, editing
 from fetch.errors import DatasetError, FetchError
 
@@ -71,6 +71,7 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
         with open_dataset(index) as ds:
             env_id, env_kwargs, layout = ds.env_id, ds.env_kwargs, ds.layout
             names = list(ds.demo_names)
+            require_valid(ds, names, images=False)
             where = {name: ds.demo_file(name) for name in names}
         if layout.cameras and size != layout.image_size:
             raise FetchError(f"{index} holds {layout.image_size}-pixel images ({', '.join(layout.cameras)}); a "

@@ -95,6 +95,41 @@ DEMO_ATTRS: tuple[tuple[str, str], ...] = (
     ("ended", "[s] Unix time of the last step"),
 )
 
+DEMO_ATTR_KINDS: dict[str, str] = {
+    "num_samples": "count", "seed": "count", "attempt": "count", "success": "bool", "env_id": "text",
+    "device": "text", "control_hz": "number", "achieved_hz": "number", "started": "number", "ended": "number",
+}
+"""What each of `DEMO_ATTRS` holds: count (a whole number >= 0), bool, text or number (finite)."""
+DATA_ATTR_KINDS: dict[str, str] = {"total": "count", "attempts": "count", "created": "number"}
+"""The kinds of the numeric `DATA_ATTRS` (the others are JSON or text, read by `reader.Dataset`)."""
+_KINDS = {"count": "a whole number >= 0", "bool": "a boolean", "text": "a string", "number": "a finite number"}
+
+
+def kind_problem(value: Any, kind: str) -> str | None:
+    """`is <value>, expected <kind>` if `value` is not of `kind` (see `DEMO_ATTR_KINDS`), else None."""
+    if isinstance(value, np.ndarray) and value.shape == ():
+        value = value[()]
+    boolean = isinstance(value, bool | np.bool_)
+    if kind == "count":
+        ok = isinstance(value, int | np.integer) and not boolean and value >= 0
+    elif kind == "bool":
+        ok = boolean or (isinstance(value, int | np.integer) and value in (0, 1))
+    elif kind == "text":
+        ok = isinstance(value, str | bytes)
+    else:
+        ok = isinstance(value, int | float | np.integer | np.floating) and not boolean and bool(np.isfinite(value))
+    return None if ok else f"is {value!r}, expected {_KINDS[kind]}"
+
+
+def check_demo_attrs(attrs: Mapping[str, Any]) -> list[str]:
+    """Problems of one demo's attributes (missing ones, or of the wrong kind); empty when they conform."""
+    missing = [key for key, _ in DEMO_ATTRS if key not in attrs]
+    if missing:
+        return [f"missing attribute(s) {', '.join(missing)}"]
+    found = {key: kind_problem(attrs[key], kind) for key, kind in DEMO_ATTR_KINDS.items()}
+    return [f"attribute {key} {p}" for key, p in found.items() if p is not None]
+
+
 DATA_ATTRS: tuple[tuple[str, str], ...] = (
     ("total", "steps in all demos (robomimic)"),
     ("env_args", "JSON `{env_name, type, env_kwargs}` (robomimic)"),
