@@ -44,6 +44,7 @@ def main() -> int:
     reported: set[str] = set()
     by_signal: dict[str, collections.Counter[str]] = collections.defaultdict(collections.Counter)
     start = time.perf_counter()
+    samples: list[str] = []
     for _ in range(args.rounds):
         sig = rng.choice(SIGNALS)
         proc = subprocess.Popen([sys.executable, "-u", "-m", "fetch.cli", "collect", "--env", args.env,
@@ -59,6 +60,8 @@ def main() -> int:
         counts["summary printed"] += " attempts, " in stdout
         counts[f"exit {proc.returncode}"] += 1
         counts["traceback"] += "Traceback" in stderr
+        if ("Traceback" in stderr or proc.returncode == 1) and len(samples) < 3:
+            samples.append(f"{sig.name}, exit {proc.returncode}:\n{stderr[-1200:]}")
     elapsed = time.perf_counter() - start
     print(f"{args.rounds} rounds on {args.env} in {elapsed:.0f} s; {len(reported)} demos reported saved\n")
     print("| signal | rounds | saves reported | summary printed | exit statuses | tracebacks |")
@@ -70,6 +73,8 @@ def main() -> int:
     with open_dataset(args.out) as ds:
         missing = sorted(reported - set(ds.demo_names))
         print(f"\ndataset: {len(ds.demo_names)} demos; reported but missing: {len(missing)} {missing[:5]}")
+    for sample in samples:
+        print(f"\nfirst failures, stderr:\n{sample}")
     info = cli(["info", str(args.out)])
     replay = cli(["replay", str(args.out), "--check"])
     print(f"info exit {info}, replay --check exit {replay}")

@@ -7,6 +7,7 @@ import contextlib
 import math
 import os
 import pathlib
+import signal
 import sys
 from collections.abc import Callable, Sequence
 
@@ -310,7 +311,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     from fetch.teleop.stopping import stop_on_signals
 
     with stop_on_signals():  # from the start: a Ctrl-C or SIGTERM while loading ends cleanly too
-        return _run(_parser().parse_args(argv))
+        try:
+            parser = _parser()
+        except KeyboardInterrupt as e:
+            return 128 + int(getattr(e, "signum", signal.SIGINT))
+        return _run(parser.parse_args(argv))
 
 
 def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_demo.py") -> int:

@@ -20,7 +20,7 @@ from fetch.dataset.writer import MAX_QUEUED, BackgroundWriter, DatasetWriter, He
 from fetch.errors import FetchError, UnknownNameError
 from fetch.rendering import check_camera
 from fetch.teleop.devices import DEVICES, Command, Device
-from fetch.teleop.stopping import Stopped, acting_on_stop, raise_if_stopped, signals_held
+from fetch.teleop.stopping import Stopped, acting_on_stop, polled, raise_if_stopped, signals_held
 
 FORMATS = ("hdf5", "npz")
 RENDER_CHOICES = ("auto", "human", "rgb_array", "none")
@@ -268,34 +268,39 @@ class Session:
 
     def run(self) -> SessionSummary:
         error, stopped_by = None, None
-        try:
-            while not self.config.episodes or self.saved_this_session < self.config.episodes:
-                attempt = self.attempt()
-                self.attempts.append(attempt)
-                if self.config.verbose or attempt.saved_as is None:
-                    self.log(f"attempt {attempt.number} (seed {attempt.seed}): {attempt.steps} steps, ended by "
-                             f"{attempt.ended_by}" + ("" if attempt.saved_as else ", not saved"))
-                if attempt.ended_by == "quit":
-                    break
-        except KeyboardInterrupt as e:
-            acting_on_stop()
-            stopped_by = e.signum if isinstance(e, Stopped) else int(signal.SIGINT)
-            self.log(f"interrupted ({signal.Signals(stopped_by).name}): finishing the saves")
-        except FetchError as e:  # the writer or the viewer failed: stop collecting, keep what is saved
-            error = str(e)
-        finally:
-            with signals_held("still finishing the saves; they will complete, then the session stops"):
-                try:
-                    self.writer.close()
-                except FetchError as e:
-                    error = error or str(e)
-                self.device.close()
-                if self.display is not None:
-                    self.display.close()
+        with polled():  # a stop signal lands at the next tick, and not while the saves are finished
+            try:
+                self._collect()
+            except KeyboardInterrupt as e:
+                acting_on_stop()
+                stopped_by = e.signum if isinstance(e, Stopped) else int(signal.SIGINT)
+                self.log(f"interrupted ({signal.Signals(stopped_by).name}): finishing the saves")
+            except FetchError as e:  # the writer or the viewer failed: stop collecting, keep what is saved
+                error = str(e)
+            finally:
+                with signals_held("still finishing the saves; they will complete, then the session stops"):
+                    try:
+                        self.writer.close()
+                    except FetchError as e:
+                        error = error or str(e)
+                    self.device.close()
+                    if self.display is not None:
+                        self.display.close()
         rates = [a.achieved_hz for a in self.attempts if a.achieved_hz > 0]
         return SessionSummary(self.attempts, self.saved_this_session, self.writer.saved, self.config.out,
                               float(np.mean(rates)) if rates else 0.0, self.clock.late, error, stopped_by,
                               self.writer.most_behind)
+
+    def _collect(self) -> None:
+        """Attempts until enough are saved or the operator quits."""
+        while not self.config.episodes or self.saved_this_session < self.config.episodes:
+            attempt = self.attempt()
+            self.attempts.append(attempt)
+            if self.config.verbose or attempt.saved_as is None:
+                self.log(f"attempt {attempt.number} (seed {attempt.seed}): {attempt.steps} steps, ended by "
+                         f"{attempt.ended_by}" + ("" if attempt.saved_as else ", not saved"))
+            if attempt.ended_by == "quit":
+                break
 
     def attempt(self) -> Attempt:
         """One episode from one reset, recorded; saved if it held success (or --keep-failures)."""

@@ -22,6 +22,8 @@ class Stopped(KeyboardInterrupt):
 
 class _State:
     depth = 0
+    polled = False
+    """a control loop asks `raise_if_stopped` every tick, so the handler only records the stop."""
     requested: int | None = None
     """the stop signal received and not yet acted on."""
     handled = False
@@ -36,7 +38,8 @@ def _stop(signum: int, frame: FrameType | None) -> None:
         os.write(2, b"still finishing the saves; they will complete, then the session stops\n")
         return
     _STATE.requested = signum
-    raise Stopped(signum)
+    if not _STATE.polled:
+        raise Stopped(signum)
 
 
 def raise_if_stopped() -> None:
@@ -45,6 +48,19 @@ def raise_if_stopped() -> None:
     loop asks once per tick."""
     if _STATE.requested is not None and not _STATE.handled:
         raise Stopped(_STATE.requested)
+
+
+@contextlib.contextmanager
+def polled() -> Iterator[None]:
+    """While inside, a stop signal is only recorded and the caller's loop raises it (`raise_if_stopped`)
+    at its next tick: raised from the handler, it could land in a weakref callback or `__del__`, where
+    Python prints it as an ignored exception."""
+    before = _STATE.polled
+    _STATE.polled = True
+    try:
+        yield
+    finally:
+        _STATE.polled = before
 
 
 def acting_on_stop() -> None:
