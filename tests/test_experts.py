@@ -10,9 +10,10 @@ from fetch.experts import Expert, make_expert
 
 SEEDS = range(100, 106)
 SLIDE_NOT_RETUNED = pytest.mark.xfail(
-    reason="Slide-v2's expert (two strikes, Fetch*-v4's geometry and 50 steps) solves ~77 % of seeds, "
-           "below the 95 % bar; on these six it misses seed 101. See benchmarks/slide_reach.py for "
-           "the goals no one- or two-strike plan reaches (issue 15 stays open)",
+    reason="Slide-v2's expert (strikes, Fetch*-v4's geometry and 50 steps) solves 75.5 % of the "
+           "benchmark's 200 seeds (24.5 % with action noise 0.1), below the 95 % bar, though these six "
+           "pass; benchmarks/slide_reach.py counts the goals no one- or two-strike plan reaches "
+           "(issue 15 stays open)",
     strict=False)
 
 
@@ -91,7 +92,7 @@ def test_slide_launch_inverts_the_glide() -> None:
 
 def _strikes(seeds: range) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, float]]:
     """(line, puck before, puck at rest after, steepest tilt [deg] meanwhile) of every strike the
-    expert makes on `seeds`."""
+    expert makes on `seeds` after which the puck stops before the next one starts."""
     env = gym.make("Slide-v2")
     expert = make_expert(env)
     layout = env.unwrapped.observation_layout
@@ -99,16 +100,17 @@ def _strikes(seeds: range) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, flo
     for seed in seeds:
         obs, _ = env.reset(seed=seed)
         expert.reset()
-        before, line, tilt = None, None, 0.0
+        before, line, tilt, pushes = None, None, 0.0, 0
         for _ in range(env.spec.max_episode_steps):
             action = expert(obs)
-            if expert.stage == "push" and before is None:
+            if expert.pushes != pushes:  # a strike starts (a previous one still gliding is dropped)
+                pushes = expert.pushes
                 before, line, tilt = obs["observation"][layout["object_pos"]][:2].copy(), expert.line.copy(), 0.0
             obs = env.step(action)[0]
             vec = obs["observation"]
             tilt = max(tilt, float(np.degrees(np.max(np.abs(vec[layout["object_rot"]][:2])))))
-            speed = np.linalg.norm(vec[layout["object_velp"]] + vec[layout["grip_velp"]])
-            if before is not None and expert.stage != "push" and speed < 1e-4:
+            speed = np.linalg.norm(vec[layout["object_velp"]] + vec[layout["grip_velp"]]) / 0.04
+            if before is not None and expert.stage != "push" and speed < 0.005:
                 strikes.append((line, before, vec[layout["object_pos"]][:2].copy(), tilt))
                 before = None
     return strikes
@@ -118,8 +120,8 @@ def test_slide_strikes_send_the_puck_along_an_axis_or_a_diagonal() -> None:
     """An x strike uses one fingertip's face (the puck's centre 12 mm across, off the slot between
     the fingertips, where it wedged and tipped up to 14 degrees) and a diagonal one the corner: the
     puck goes along x, or at 45 degrees, within a few degrees, and stays flat."""
-    strikes = [s for s in _strikes(range(100, 106)) if s[0][0] != 0.0 and np.linalg.norm(s[2] - s[1]) > 0.05]
-    assert len(strikes) >= 5
+    strikes = [s for s in _strikes(range(100, 112)) if s[0][0] != 0.0 and np.linalg.norm(s[2] - s[1]) > 0.05]
+    assert len(strikes) >= 6
     for line, before, after, tilt in strikes:
         moved = after - before
         error = np.degrees(np.arctan2(moved[1], moved[0]) - np.arctan2(line[1], line[0]))

@@ -1,27 +1,30 @@
-"""The Slide expert: push the puck along an axis onto a diagonal through the goal, then shoot it.
+"""The Slide expert: strike the puck onto a line through the goal, then strike it along that line.
 
 What it relies on (measured on Fetch*-v4's Slide table, friction 0.1, MuJoCo's default pyramidal
-friction cone):
+friction cone; benchmarks/slide_reach.py searches what one or two strikes can reach):
 
 - Friction on the table is not isotropic. A gliding puck decelerates at `DECELERATION` along the
   larger of its x and y velocity components only, the smaller one kept, until both are equal;
   then both at half that. From a launch (A, B), A >= B >= 0, it comes to rest (A^2 + B^2) / 2a
   further along A's axis and A B / a along B's (`glide`): a glide along an axis stays on it, any
-  other bends towards the nearest diagonal, and along the diagonal the puck goes sqrt(2) times
-  further than along an axis for the same speed.
-- Pushed, the puck follows the same rule: a face of the closed fingers pushes it along the face's
-  normal (the puck rolls along the face) and the fingers' corner pushes it along the diagonal.
-  So the pushes here go along x, along y, or along a diagonal, and nothing else is aimed.
-- Along x the face is the two fingertips side by side with a slot between them: a puck pushed at
-  the slot wedges into it, so an x push uses one fingertip, the hand offset by `FINGER` across.
-- The plan: from where the puck will rest, one axis push that leaves the goal on a diagonal (or on
-  the axis) from the puck, then a shot along that diagonal (or axis), let go at the speed whose
-  glide ends on the goal. The diagonal shot is forgiving: a glide that starts a little off the
-  diagonal bends back onto it. The hand reaches only x ~ 1.39 m at table height, so when the axis
-  push would have to end beyond that, the diagonal goes first and the shot is along x.
-- The hand surges in the middle of each control step (the mocap target jumps once per step), so
-  a pushed puck leaves up to ~1.5 times faster than the hand: the release watches the puck's own
-  speed and lets go a step before its glide would reach the target.
+  other bends towards the nearest diagonal, where it stays.
+- Pushed, the puck obeys the same rule: a face of the closed fingers sends it along the face's
+  normal (it rolls along the face) and their outer corner sends it along the diagonal, whichever
+  way the hand moves. So the puck goes along x, along y or along a diagonal, nothing else.
+- Along x the face is the two fingertips side by side with a slot between them: a puck struck
+  at the slot wedges into it and tips up, so an x strike uses one fingertip (`FINGER`); a corner
+  strike has the puck's centre `CORNER` past the fingers' side. Both strike with the hand moving
+  along x from rest 1 cm behind the puck.
+- A strike is two steps of one action: the mocap target jumps by 5 cm a step at full size and the
+  hand surges, so the puck leaves at up to ~1 m/s, faster than the hand ever moves steadily. How
+  far it then goes was measured against the action's size and the puck's x (the arm weakens as it
+  stretches, and cannot reach a puck beyond x ~ 1.36 m): `strike_size`, `strike_reach`.
+- The plan: from where the puck will rest, a shot if the goal is on an axis or a diagonal from
+  it; else a first strike that leaves the goal on one (along x then the diagonal, or along the
+  diagonal then x; for goals mostly across, along y then the diagonal), whichever pair the strike
+  table says fits; the next plan starts from where the puck will rest.
+- 50 steps are short: the hand lines up for the next strike while the puck still glides, low
+  (below the puck's top) whenever neither the hand's way nor the puck's crosses the other.
 """
 
 from __future__ import annotations
@@ -48,8 +51,8 @@ FINGER = 0.012
 it along x: on the +y fingertip (0.8 to 15.2 mm), off the slot between the two and off its corner."""
 CORNER = 0.0088
 """[m] ...and how far past the fingers' side it is when their corner pushes it along the diagonal."""
-
-
+BOX = (np.array([-0.0164, SIDES[1]]), np.array([FRONT, SIDES[0]]))
+"""[m] the closed fingers' extent (xy) from the grip site: low, high corners."""
 
 STRIKE_STEPS = 2
 """[steps] a strike is this many steps of one action, from rest 1 cm behind the puck."""
@@ -89,6 +92,16 @@ def strike_reach(x: float, diagonal: bool) -> float:
     return furthest * np.sqrt(2.0) if diagonal else furthest
 
 
+def _glide_time(distance: float, diagonal: bool, short: float = 0.0) -> float:
+    """[s] how long a puck struck to glide `distance` [m] (along an axis or the diagonal) takes to
+    come within `short` [m] of where it stops."""
+    distance, short = max(distance, 0.0), min(max(short, 0.0), max(distance, 0.0))
+    if diagonal:  # each axis decelerates at half the rate, over 1 / sqrt(2) of the distance
+        return 2.0 * float(np.sqrt(DECELERATION * distance / np.sqrt(2.0))
+                           - np.sqrt(DECELERATION * short / np.sqrt(2.0))) / DECELERATION
+    return float(np.sqrt(2.0 * DECELERATION * distance) - np.sqrt(2.0 * DECELERATION * short)) / DECELERATION
+
+
 def glide(velocity: np.ndarray) -> np.ndarray:
     """[m] where a puck moving at `velocity` [m/s, world xy] comes to rest, from where it is."""
     a, b = abs(float(velocity[0])), abs(float(velocity[1]))
@@ -108,7 +121,7 @@ def launch(displacement: np.ndarray) -> np.ndarray:
 
 
 class Slide(Expert):
-    """Plan -> line up -> push -> watch: a push onto a line through the goal, then the shot."""
+    """Plan -> line up -> push (a strike) -> watch, until the puck will rest on the goal."""
 
     arrived = 0.03
     """[m] no further push once the puck will rest this close to the goal..."""
@@ -116,36 +129,25 @@ class Slide(Expert):
     """[m] ...until something moves it further than this (a correction risks more than it gains)."""
     on_line = 0.02
     """[m] the goal counts as on a diagonal (or an axis) from the puck within this across."""
+    shortest = 0.04
+    """[m] no strike aims to move the puck less than this."""
     gap = 0.010
     """[m] free space between the fingers and the puck where the hand comes down."""
     hover = 0.045
     """[m] how high above the puck's centre the hand crosses over it."""
     margin = 0.006
     """[m] the fingers pass the puck at least this far off when they stay low."""
-    close = 0.006
-    """[m] the hand counts as at the start of a push within this."""
+    close = 0.01
+    """[m] the hand counts as at the start of a strike within this..."""
     aligned = 0.0025
     """[m] ...and within this across the strike (the face or corner it strikes with is a few mm wide)."""
     at_rest = 0.05
     """[m/s] a puck slower than this counts as stopped."""
-    catch = 0.006
-    """[m] how far a step the hand closes in on a puck at rest."""
-    ramp = 0.3
-    """[1] how much larger the push's action may get each step."""
-    strike = 0.9
-    """[m/s] the speed a puck pushed with an action of size 1 leaves at (0.46, 0.68, 0.98 m/s after
-    two steps at 0.5, 0.7, 1 from rest, x ~ 1 m; 10% less at x ~ 1.2 m)."""
-    feedback = 0.0
-    """[1] how much of the puck's speed error the next step's action corrects."""
-    profile = 1.0
-    """[1] the push's speed as a fraction of the speed whose glide would end on its target (the
-    puck leaves faster than the hand: see the module's docstring)."""
-    lead = 1.0
-    """[steps] the release comes this many steps of the puck's motion before its glide would do."""
-    lost = 0.04
-    """[m] the push is over once the puck is this far ahead of the fingers (it got away)."""
-    reach = 1.36
-    """[m] the furthest the puck's centre x can be pushed to (the hand stops at x ~ 1.39 m)."""
+    still = 0.1
+    """[m/s] a hand slower than this counts as stopped (a strike from a hand still moving across
+    lands on another face)."""
+    horizon = 50
+    """[steps] the episode's length (Fetch*-v4's): success is judged at its last step."""
     integral = 0.3
     """[1] the fraction of its error the hand's target adds up each step (a stretched arm stalls short
     of a target a few mm away)."""
@@ -155,18 +157,20 @@ class Slide(Expert):
         self.line = np.array([1.0, 0.0])  # where the push sends the puck (unit, xy)
         self.motion = np.array([1.0, 0.0])  # where the hand moves during the push (unit, xy)
         self.offset = np.zeros(2)  # the puck's centre from the grip site at contact (xy)
-        self.target = np.zeros(2)
-        self.shot = False
-        self.speed = 0.0
+        self.target = np.zeros(2)  # where the strike should leave the puck (xy)
+        self.size_now = 0.0  # the strike's action size
         self.hold = np.zeros(3)
         self.bias = np.zeros(3)
         self.pushes = 0
+        self.steps = 0  # steps taken this episode
+        self.goal = np.zeros(2)
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         grip = self.part(obs, "grip_pos")
         puck = self.part(obs, "object_pos")
         velocity = (self.part(obs, "object_velp") + self.part(obs, "grip_velp"))[:2] / CONTROL_DT
         goal = np.asarray(obs["desired_goal"])
+        self.goal, self.steps = goal[:2].copy(), self.steps + 1
         rest = puck[:2] + glide(velocity)
         if self.stage == "watch" and self.timer < 2:
             return self.back_off(grip, puck)
@@ -175,7 +179,8 @@ class Slide(Expert):
         if self.stage == "done":
             return self.toward(grip, self.hold)
         if self.stage == "line_up":
-            return self.line_up(grip, puck, rest, float(np.linalg.norm(velocity)))
+            hand = float(np.linalg.norm(self.part(obs, "grip_velp")[:2])) / CONTROL_DT
+            return self.line_up(grip, puck, rest, float(np.linalg.norm(velocity)), hand)
         return self.push(grip, puck, velocity)
 
     def plan(self, rest: np.ndarray, goal: np.ndarray, grip: np.ndarray) -> None:
@@ -188,20 +193,26 @@ class Slide(Expert):
         sx, sy = float(np.sign(dx) or 1.0), float(np.sign(dy) or 1.0)
         diagonal = np.array([sx, sy]) / np.sqrt(2.0)
         if abs(dy) < self.on_line:
-            line, target, shot = np.array([sx, 0.0]), goal[:2], True
+            line, target = np.array([sx, 0.0]), goal[:2]
         elif abs(abs(dx) - abs(dy)) < self.on_line:
-            line, target, shot = diagonal, goal[:2], True
+            line, target = diagonal, goal[:2]
         elif abs(dx) < self.on_line:
-            line, target, shot = np.array([0.0, sy]), goal[:2], True
+            line, target = np.array([0.0, sy]), goal[:2]
         else:
-            line, target, shot = self.two_strikes(rest, goal[:2])
+            line, target = self.two_strikes(rest, goal[:2])
+            if float(np.linalg.norm(target - rest)) < self.shortest:
+                # Too short a strike to be sure of (the hand barely reaches the puck): shoot along
+                # the nearer line instead, missing by about that much.
+                axis = np.array([sx, 0.0]) if abs(dx) > abs(dy) else np.array([0.0, sy])
+                line = axis if abs(abs(dx) - abs(dy)) > min(abs(dx), abs(dy)) else diagonal
+                target = goal[:2]
         changed = not np.allclose(line, self.line) or self.stage != "line_up"
-        self.line, self.target, self.shot = line, target, shot
+        self.line, self.target = line, target
         self.motion, self.offset = self.contact(line)
         if changed:
             self.advance("line_up")
 
-    def two_strikes(self, rest: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    def two_strikes(self, rest: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The first of two strikes (its line and where it should leave the puck) that take the
         puck from `rest` to `goal` [m, xy]: an axis then the diagonal, or the diagonal then an
         axis; the pair the strike tables say fits best, then the one whose first leg is shorter."""
@@ -225,10 +236,12 @@ class Slide(Expert):
 
         def shortfall(plan: tuple[np.ndarray, np.ndarray, float, float, float, float]) -> tuple[float, float]:
             first, first_reach, second, second_reach = plan[2:]
-            return max(first - first_reach, second - second_reach, 0.0), first
+            diagonal_first = bool(plan[0][0] != 0.0 and plan[0][1] != 0.0)
+            time = _glide_time(first, diagonal_first) + _glide_time(second, not diagonal_first, self.arrived)
+            return max(first - first_reach, second - second_reach, 0.0), time
 
         line, target = min(plans, key=shortfall)[:2]
-        return line, target, False
+        return line, target
 
     def contact(self, line: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """How the hand strikes the puck along `line`: its motion and the puck's centre from the
@@ -253,20 +266,20 @@ class Slide(Expert):
         """[m] where the grip site is when the fingers are `gap` behind the puck (xy)."""
         return puck[:2] - self.offset - self.motion * gap
 
-    def line_up(self, grip: np.ndarray, puck: np.ndarray, rest: np.ndarray, speed: float) -> np.ndarray:
+    def line_up(self, grip: np.ndarray, puck: np.ndarray, rest: np.ndarray, speed: float,
+                hand: float) -> np.ndarray:
         """To the start behind where the puck will rest, low if neither the hand's way there nor
         the puck's way to rest crosses the other, else over the puck; strike once it has stopped."""
         start = self.start(rest, self.gap)
         off = float(np.linalg.norm(grip[:2] - start))
         low = abs(grip[2] - puck[2]) < 0.007
-        gliding = _clear_path(puck[:2], rest, start, RADIUS + self.margin)
+        gliding = _clear(np.linspace(puck[:2], rest, 9), start[None], RADIUS + self.margin)
         across = float(np.linalg.norm((grip[:2] - start) - ((grip[:2] - start) @ self.motion) * self.motion))
-        if low and off < self.close and across < self.aligned and speed < self.at_rest:
-            self.speed = 0.0
+        if low and off < self.close and across < self.aligned and speed < self.at_rest and hand < self.still:
             self.pushes += 1
             self.advance("push")
             return self.toward(grip, np.array([*start, puck[2]]))
-        if gliding and _clear(puck[:2], grip[:2], start, RADIUS + self.margin):
+        if gliding and _clear(puck[None, :2], np.linspace(grip[:2], start, 9), RADIUS + self.margin):
             return self.toward(grip, np.array([*start, puck[2]]))
         high = puck[2] + self.hover
         if grip[2] < high - 0.02:
@@ -280,13 +293,31 @@ class Slide(Expert):
             return self.back_off(grip, puck)
         if self.timer == 1:  # the first step of the push (the line-up's step was the 0th)
             left = float((self.target - puck[:2]) @ self.line)
-            self.speed = self.size(left, float(puck[0]))
+            self.size_now = self.size(self.hurry(left), float(puck[0]))
         contact = self.start(puck, 0.0)
         behind = float((contact - grip[:2]) @ self.motion)
         across = contact - grip[:2] - behind * self.motion
         action = self.move(grip, np.array([*(grip[:2] + across), puck[2]]))
-        action[:2] += self.motion * self.speed
+        action[:2] += self.motion * self.size_now
         return np.append(np.clip(action, -1.0, 1.0), -1.0)
+
+    def hurry(self, distance: float) -> float:
+        """[m] how far the strike should send the puck to rest, for it to be within reach of the
+        goal `distance` [m] away by the episode's last step: further than the goal if a glide that
+        stops there would still be on its way (success is judged at the last step, not at rest)."""
+        diagonal = bool(self.line[0] != 0.0 and self.line[1] != 0.0)
+        left = (self.horizon - self.steps - STRIKE_STEPS) * CONTROL_DT
+        if not np.array_equal(self.target, self.goal) or left <= 0.0:
+            return distance
+        if _glide_time(distance, diagonal, self.arrived) <= left:
+            return distance
+        # Be `arrived` short of the goal at the last step, still gliding: along an axis
+        # x(t) = v t - a t^2 / 2; on the diagonal each axis does that at a / 2.
+        rate = DECELERATION / 2.0 if diagonal else DECELERATION
+        along = (distance - self.arrived) / (np.sqrt(2.0) if diagonal else 1.0)
+        speed = along / left + rate * left / 2.0
+        rest = speed * speed / (2.0 * rate)
+        return float(rest * (np.sqrt(2.0) if diagonal else 1.0))
 
     def size(self, distance: float, x: float) -> float:
         """The strike's action size to send the puck at rest at `x` [m] `distance` [m] along the line."""
@@ -306,23 +337,8 @@ class Slide(Expert):
         return np.append(self.move(grip, target + self.bias), -1.0)
 
 
-BOX = (np.array([-0.0164, SIDES[1]]), np.array([FRONT, SIDES[0]]))
-"""[m] the closed fingers' extent (xy) from the grip site: low, high corners."""
-
-
-def _clear_path(puck: np.ndarray, rest: np.ndarray, grip: np.ndarray, distance: float) -> bool:
-    """Whether a puck gliding from `puck` to `rest` stays `distance` [m] from fingers at `grip` (xy)."""
-    for t in np.linspace(0.0, 1.0, 9):
-        local = puck + t * (rest - puck) - grip
-        if np.linalg.norm(local - np.clip(local, BOX[0], BOX[1])) < distance:
-            return False
-    return True
-
-
-def _clear(puck: np.ndarray, a: np.ndarray, b: np.ndarray, distance: float) -> bool:
-    """Whether the fingers, moving from grip a to grip b (xy), stay `distance` [m] from the puck's centre."""
-    for t in np.linspace(0.0, 1.0, 9):
-        local = puck - (a + t * (b - a))
-        if np.linalg.norm(local - np.clip(local, BOX[0], BOX[1])) < distance:
-            return False
-    return True
+def _clear(pucks: np.ndarray, grips: np.ndarray, distance: float) -> bool:
+    """Whether each puck centre in `pucks` stays `distance` [m] from the fingers at the grip site
+    position with the same index in `grips` (xy rows; either may be a single row)."""
+    local = pucks - grips
+    return bool(np.all(np.linalg.norm(local - np.clip(local, BOX[0], BOX[1]), axis=-1) >= distance))
