@@ -24,7 +24,9 @@ friction cone; benchmarks/slide_reach.py searches what one or two strikes can re
   diagonal then x; for goals mostly across, along y then the diagonal), whichever pair the strike
   table says fits; the next plan starts from where the puck will rest.
 - 50 steps are short: the hand lines up for the next strike while the puck still glides, low
-  (below the puck's top) whenever neither the hand's way nor the puck's crosses the other.
+  (below the puck's top) whenever neither the hand's way nor the puck's crosses the other; and
+  success is judged at the last step, not at rest, so a shot that would still be gliding then is
+  struck harder, to be near the goal at `horizon` (`hurry`: 80 % instead of 77 % on seeds 0-99).
 """
 
 from __future__ import annotations

@@ -1,0 +1,136 @@
+"""Which Slide-v2 goals some plan of one or two strikes reaches in 50 steps: a search in simulation.
+
+For each seed, every plan of one strike (line x, the two diagonals, +-y; the expert's action size for
+the goal's distance along the line times 0.85..1.15, and 1) and of two strikes (the first along x,
+the diagonal towards the goal or y towards the goal, action size 0.3..1; the second along x or a
+diagonal, sized as a single strike) is run from the start with the Slide expert's own line-up and
+strike (`fetch.experts.slide.Slide`), the second strike branching from a copy of the env taken when
+the first ends. A seed no plan of the family reaches is counted unreachable *by this family*: the
+search bounds what two strikes can do, not what any policy can.
+
+    .venv/bin/python benchmarks/slide_reach.py --seeds 100     # ~26 min on one core
+
+Seeds 0-99 (mujoco 4.0.0): one strike reaches 34 %,
+two strikes 60 %, neither 6 % (seeds 0, 18, 56, 61, 85, 93: goals at x >= 1.60 m and >= 17 cm
+across, 0.65-0.80 m from the puck; a strike carries the puck at most ~0.64 m along x or ~0.35 m
+per axis on the diagonal from x <= 1.15 m, less further out, and none past x ~ 1.36 m).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import pickle
+import time
+from collections.abc import Mapping
+
+import gymnasium as gym
+import numpy as np
+
+import fetch  # noqa: F401  (registers the ids)
+from fetch.experts.slide import Slide
+
+SIZES = (0.3, 0.45, 0.6, 0.75, 0.9, 1.0)
+"""Action sizes of a first strike."""
+SCALES = (-0.85, -0.9, -0.95, -1.0, -1.05, -1.1, -1.15, 1.0)
+"""A strike aimed at the goal: the expert's size (from its strike table) times 0.85..1.15, and 1."""
+HORIZON = 50
+
+
+class Forced(Slide):
+    """The Slide expert made to strike along given lines with given action sizes, then stop."""
+
+    def __init__(self, layout: Mapping[str, slice], strikes: list[tuple[tuple[float, float], float]]) -> None:
+        self.strikes = list(strikes)
+        super().__init__(layout)
+
+    def reset(self) -> None:
+        super().reset()
+        self.queue = list(self.strikes)
+        self.forced_size = 0.0
+
+    def plan(self, rest: np.ndarray, goal: np.ndarray, grip: np.ndarray) -> None:
+        if self.stage == "line_up":
+            return
+        if not self.queue:
+            self.finish(grip, goal)
+            return
+        (lx, ly), self.forced_size = self.queue.pop(0)
+        self.line = np.array([lx, ly]) / np.hypot(lx, ly)
+        self.target = goal[:2].copy()
+        self.motion, self.offset = self.contact(self.line)
+        self.advance("line_up")
+
+    def size(self, distance: float, x: float) -> float:
+        # A negative size scales the expert's own choice (its strike table) by minus that.
+        if self.forced_size < 0.0:
+            return min(-self.forced_size * super().size(distance, x), 1.0)
+        return self.forced_size
+
+
+def _finish(env: gym.Env, expert: Forced, obs: dict, steps: int) -> bool:
+    info: dict = {}
+    for _ in range(steps):
+        obs, _, _, _, info = env.step(expert(obs))
+    return bool(info.get("is_success", False))
+
+
+def search(seed: int) -> tuple[str, int]:
+    """('one' | 'two' | 'none', rollouts) for the seed's start and goal."""
+    env = gym.make("Slide-v2").unwrapped
+    layout = env.observation_layout
+    obs, _ = env.reset(seed=seed)
+    puck = obs["observation"][layout["object_pos"]][:2]
+    dy = float(obs["desired_goal"][1] - puck[1])
+    sy = 1.0 if dy >= 0 else -1.0
+    start = pickle.dumps(env)
+    rollouts = 0
+    for line in ((1.0, 0.0), (1.0, 1.0), (1.0, -1.0), (0.0, 1.0), (0.0, -1.0)):
+        for size in SCALES:
+            run = pickle.loads(start)
+            expert = Forced(layout, [(line, size)])
+            rollouts += 1
+            if _finish(run, expert, obs, HORIZON):
+                return "one", rollouts
+    for first in ((1.0, 0.0), (1.0, sy), (0.0, sy)):
+        for size in SIZES:
+            run = pickle.loads(start)
+            expert = Forced(layout, [(first, size), ((1.0, 0.0), 0.0)])
+            current, steps = obs, 0
+            while steps < HORIZON and not (expert.stage == "watch" and expert.pushes == 1):
+                current = run.step(expert(current))[0]
+                steps += 1
+            branch_env, branch_expert = pickle.dumps(run), copy.deepcopy(expert)
+            for second in ((1.0, 0.0), (1.0, sy), (1.0, -sy)):
+                for size2 in SCALES:
+                    run2 = pickle.loads(branch_env)
+                    expert2 = copy.deepcopy(branch_expert)
+                    expert2.queue = [(second, size2)]
+                    rollouts += 1
+                    if _finish(run2, expert2, current, HORIZON - steps):
+                        return "two", rollouts
+    return "none", rollouts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", type=int, default=200)
+    parser.add_argument("--first-seed", type=int, default=0)
+    args = parser.parse_args()
+    counts = {"one": 0, "two": 0, "none": 0}
+    unreachable = []
+    start = time.perf_counter()
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
+        verdict, rollouts = search(seed)
+        counts[verdict] += 1
+        if verdict == "none":
+            unreachable.append(seed)
+        print(f"seed {seed}: {verdict} ({rollouts} rollouts)", flush=True)
+    n = args.seeds
+    print(f"\n{n} seeds in {time.perf_counter() - start:.0f} s: one strike {counts['one'] / n:.1%}, "
+          f"two strikes {counts['two'] / n:.1%}, neither {counts['none'] / n:.1%}")
+    print("unreachable by the family:", unreachable)
+
+
+if __name__ == "__main__":
+    main()
