@@ -89,13 +89,12 @@ def test_a_write_failure_is_a_clear_error_and_keeps_earlier_demos(tmp_path: path
 
 @pytest.mark.parametrize("where", ["index", "episodes"])
 def test_an_unwritable_output_is_a_clear_error(tmp_path: pathlib.Path, where: str) -> None:
-    import os
-
-    if os.geteuid() == 0:
-        # root ignores permissions; a file where the directory should be is refused for everyone
-        target = tmp_path / "demos" if where == "index" else tmp_path / "demos" / "episodes"
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_text("in the way")
+    # A file where the directory should be is refused for every user (root ignores permissions, so
+    # a chmod would prove nothing; the setup used to exist for root only, and as any other user the
+    # test then collected happily and failed).
+    target = tmp_path / "demos" if where == "index" else tmp_path / "demos" / "episodes"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text("in the way")
     run = subprocess.run(collector(tmp_path / "demos", "--device", "expert", "--episodes", "1"),
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 2
