@@ -52,7 +52,13 @@ def main() -> int:
                                  "--out", str(args.out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         time.sleep(rng.uniform(0.2, 3.0))  # in the import, the resume, or among the saves
         proc.send_signal(sig)
-        stdout, stderr = proc.communicate(timeout=120)
+        try:
+            stdout, stderr = proc.communicate(timeout=120)
+        except subprocess.TimeoutExpired:  # a collector that ignored its signal: count it, leave none behind
+            proc.kill()
+            stdout, stderr = proc.communicate()
+            stderr += "\nsoak: no exit within 120 s of the signal; killed"
+            by_signal[sig.name]["hung"] += 1
         reported |= saved_names(stdout)
         counts = by_signal[sig.name]
         counts["rounds"] += 1
@@ -64,12 +70,12 @@ def main() -> int:
             samples.append(f"{sig.name}, exit {proc.returncode}:\n{stderr[-1200:]}")
     elapsed = time.perf_counter() - start
     print(f"{args.rounds} rounds on {args.env} in {elapsed:.0f} s; {len(reported)} demos reported saved\n")
-    print("| signal | rounds | saves reported | summary printed | exit statuses | tracebacks |")
-    print("|---|---|---|---|---|---|")
+    print("| signal | rounds | saves reported | summary printed | exit statuses | tracebacks | hung |")
+    print("|---|---|---|---|---|---|---|")
     for name, c in sorted(by_signal.items()):
         exits = ", ".join(f"{k[5:]} x{v}" for k, v in sorted(c.items()) if k.startswith("exit "))
         print(f"| {name} | {c['rounds']} | {c['saves reported']} | {c['summary printed']} | {exits} | "
-              f"{c['traceback']} |")
+              f"{c['traceback']} | {c['hung']} |")
     with open_dataset(args.out) as ds:
         missing = sorted(reported - set(ds.demo_names))
         print(f"\ndataset: {len(ds.demo_names)} demos; reported but missing: {len(missing)} {missing[:5]}")
@@ -78,7 +84,8 @@ def main() -> int:
     info = cli(["info", str(args.out)])
     replay = cli(["replay", str(args.out), "--check"])
     print(f"info exit {info}, replay --check exit {replay}")
-    return 0 if not missing and info == 0 and replay == 0 else 1
+    hung = sum(c["hung"] for c in by_signal.values())
+    return 0 if not missing and not hung and info == 0 and replay == 0 else 1
 
 
 if __name__ == "__main__":
