@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset.episode import Demo
-from fetch.dataset.replay import Deviation, ReplayCheck, largest_difference
+from fetch.dataset.replay import ReplayCheck, resimulate
 from fetch.dataset.writer import BackgroundWriter, atomic_write
 from fetch.errors import DatasetError
 
@@ -151,29 +151,10 @@ def problems(demo: NpzDemo) -> list[str]:
 
 
 def check_npz(demo: NpzDemo, env: Any) -> ReplayCheck:
-    """Replay one file as `replay --check` does an HDF5 demo: reset with its seed (compared with its
-    first observation and state), restore its first state, apply its actions, compare every
-    observation and state."""
+    """Replay one file as `replay --check` does an HDF5 demo (`fetch.dataset.replay.resimulate`)."""
     a = demo.arrays
     keys = [k[len("obs__"):] for k in a if k.startswith("obs__")]
-    states, actions = a["states"], a["action"]
-    obs, _ = env.reset(seed=int(demo.metadata["seed"]))
-    reset = max([largest_difference(env.get_state()[None], states[:1], "states")]
-                + [largest_difference(obs[k][None], a[f"obs__{k}"][:1], f"obs/{k}") for k in keys],
-                key=lambda d: d.value)
-    env.set_state(states[0])
-    replayed = {k: np.empty_like(a[f"obs__{k}"][1:]) for k in keys}
-    replayed_states = np.empty_like(states[1:])
-    success = False
-    for i, action in enumerate(actions):
-        obs, _, _, _, info = env.step(action)
-        for k in keys:
-            replayed[k][i] = obs[k]
-        env.get_state(out=replayed_states[i])
-        success = success or info["is_success"] >= 1.0
-    observations = max((largest_difference(replayed[k], a[f"obs__{k}"][1:], f"next_obs/{k}") for k in keys),
-                       key=lambda d: d.value, default=Deviation(0.0, "next_obs"))
     recorded = any(float(i.get("is_success", 0.0)) >= 1.0 for i in json.loads(str(a["info_json"])))
-    return ReplayCheck(name=demo.path.name, steps=len(actions), reset=reset, observations=observations,
-                       states=largest_difference(replayed_states, states[1:], "states", row_offset=1),
-                       success_recorded=recorded, success_replayed=success)
+    return resimulate(demo.path.name, env, int(demo.metadata["seed"]), a["action"], a["states"],
+                      first={k: a[f"obs__{k}"][:1] for k in keys}, recorded_next={k: a[f"obs__{k}"][1:] for k in keys},
+                      success_recorded=recorded)

@@ -64,14 +64,20 @@ def check_demo(ds: Dataset, name: str, env: Any | None = None) -> ReplayCheck:
     `states[0]`, apply the recorded actions, compare every observation and state."""
     env = env if env is not None else make_replay_env(ds)
     group = ds.demo(name)
-    seed = int(group.attrs["seed"])
-    actions = group["actions"][()]
-    states = group["states"][()]
     keys = [k for k, _ in ds.layout.obs_sizes]
-    first = {k: group[f"obs/{k}"][:1] for k in keys}
-    recorded_next = {k: group[f"next_obs/{k}"][()] for k in keys}
-    t = len(actions)
+    return resimulate(name, env, int(group.attrs["seed"]), group["actions"][()], group["states"][()],
+                      first={k: group[f"obs/{k}"][:1] for k in keys},
+                      recorded_next={k: group[f"next_obs/{k}"][()] for k in keys},
+                      success_recorded=bool(group["is_success"][()].any()))
 
+
+def resimulate(name: str, env: Any, seed: int, actions: np.ndarray, states: np.ndarray,
+               first: dict[str, np.ndarray], recorded_next: dict[str, np.ndarray],
+               success_recorded: bool) -> ReplayCheck:
+    """Reset `env` with `seed` (compared with `states[0]` and the `first` observation rows), restore
+    `states[0]`, apply `actions`, compare every observation with `recorded_next` and every state
+    with `states[1:]`. The one replay of both the HDF5 and the npz format."""
+    keys = list(recorded_next)
     obs, _ = env.reset(seed=seed)
     start = env.get_state()
     reset_devs = [largest_difference(start[None], states[:1], "states")]
@@ -82,14 +88,14 @@ def check_demo(ds: Dataset, name: str, env: Any | None = None) -> ReplayCheck:
     replayed = {k: np.empty_like(recorded_next[k]) for k in keys}
     replayed_states = np.empty_like(states[1:])
     success = False
-    for i in range(t):
-        obs, _, _, _, info = env.step(actions[i])
+    for i, action in enumerate(actions):
+        obs, _, _, _, info = env.step(action)
         for k in keys:
             replayed[k][i] = obs[k]
         env.get_state(out=replayed_states[i])
         success = success or info["is_success"] >= 1.0
     observations = max((largest_difference(replayed[k], recorded_next[k], f"next_obs/{k}") for k in keys),
                        key=lambda d: d.value, default=Deviation(0.0, "next_obs"))
-    return ReplayCheck(name=name, steps=t, reset=reset, observations=observations,
+    return ReplayCheck(name=name, steps=len(actions), reset=reset, observations=observations,
                        states=largest_difference(replayed_states, states[1:], "states", row_offset=1),
-                       success_recorded=bool(group["is_success"][()].any()), success_replayed=success)
+                       success_recorded=success_recorded, success_replayed=success)
