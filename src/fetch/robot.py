@@ -102,9 +102,10 @@ class RobotConfig:
     """gymnasium-robotics' task file the classic tasks load as it is (e.g. "push.xml"), or None
     for our room (assets/scene.xml) with the robot in it."""
     base_xy: tuple[float, float] = (0.405, 0.48)
-    """the classic `robot0:slide0/1` values: where the mobile base is parked."""
+    """our room: where the mobile base is parked (the classic `robot0:slide0/1` values). A classic
+    scene's start state, base included, is loaded as recorded."""
     start_height: float = 0.2
-    """the classic `gripper_extra_height`: the start target is the classic offset plus this in z."""
+    """our room: the classic `gripper_extra_height`: the start target is the classic offset plus this in z."""
     workspace: Workspace | None = Workspace()
     """the box the hand's target is clamped to (teleoperation safety); None: unlimited, as in the
     classic suite."""
@@ -115,6 +116,10 @@ class RobotConfig:
 def build_spec(config: RobotConfig) -> mujoco.MjSpec:
     """The robot in its scene (table, cameras, goal marker), ready for a task's additions."""
     spec = _classic_spec(config) if config.scene else _room_spec(config)
+    if hasattr(mujoco.mjtEnableBit, "mjENBL_MULTICCD"):
+        # Where several contacts between convex shapes are opt-in (mujoco 3.3; 3.11, where v4 runs,
+        # and 4.x give them by default), one contact lets a cylinder on the table rock and sink ~7 mm.
+        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_MULTICCD)
     # The weld holds gripper_link centred on the mocap body, with the same orientation: what the
     # classic suite's reset_mocap_welds sets (the relative pose otherwise defaults to qpos0's).
     weld = spec.equalities[0]
@@ -146,11 +151,10 @@ def _room_spec(config: RobotConfig) -> mujoco.MjSpec:
     # Elliptic friction cones: with MuJoCo's default pyramidal ones, sliding friction depends on
     # the direction of motion and an object sliding diagonally curves away from its line.
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    if hasattr(mujoco.mjtEnableBit, "mjENBL_MULTICCD"):
-        # Before mujoco 4 convex-convex collisions give one contact unless asked for more: a
-        # cylinder on the table then rocks and sinks ~7 mm. 4.x does this by default.
-        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_MULTICCD)
-    _fix_base(spec, config)
+    for name in _DEAD_JOINTS:
+        _delete(spec, spec.joint(name))
+    spec.body("robot0:base_link").pos = np.array([*config.base_xy, 0.0]) + _BASE_LINK_OFFSET
+    _out_of_collisions(spec, _HIGH_LINKS)
     # gymnasium-robotics' near-white table saturates under the lights; a light grey keeps texture.
     spec.material("table_mat").rgba = [0.72, 0.72, 0.70, 1.0]
     return spec
@@ -168,14 +172,7 @@ def _classic_spec(config: RobotConfig) -> mujoco.MjSpec:
     # Absolute asset paths, so the model's XML (stored in datasets) compiles from anywhere.
     spec.meshdir = str(assets / "stls" / "fetch")
     spec.texturedir = str(assets / "textures")
-    if hasattr(mujoco.mjtEnableBit, "mjENBL_MULTICCD"):
-        # mujoco 3.11, where v4 runs, finds several contacts between convex shapes by default;
-        # before (3.3) it finds one unless asked, and Slide's puck rocks and sinks ~7 mm.
-        spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_MULTICCD)
-    for geom in spec.geoms:
-        if geom.name in _HIGH_LINKS + _IDLE_LINKS:
-            geom.contype = 0
-            geom.conaffinity = 0
+    _out_of_collisions(spec, _HIGH_LINKS + _IDLE_LINKS)
     # Their goal marker is a site they move by editing the model; ours is a mocap body, so the goal
     # is part of the saved state. Group 2 holds the marker alone (renderers hide it by that group).
     _delete(spec, spec.site("target0"))
@@ -187,14 +184,10 @@ def _classic_spec(config: RobotConfig) -> mujoco.MjSpec:
     return spec
 
 
-def _fix_base(spec: mujoco.MjSpec, config: RobotConfig) -> None:
-    """Remove the joints that never move, parking the base at `config.base_xy`, and take the upper
-    arm out of collision detection. A static base no longer collides with the floor either."""
-    for name in _DEAD_JOINTS:
-        _delete(spec, spec.joint(name))
-    spec.body("robot0:base_link").pos = np.array([*config.base_xy, 0.0]) + _BASE_LINK_OFFSET
+def _out_of_collisions(spec: mujoco.MjSpec, names: tuple[str, ...]) -> None:
+    """Leave the named geoms out of collision detection (links that never touch anything)."""
     for geom in spec.geoms:
-        if geom.name in _HIGH_LINKS:
+        if geom.name in names:
             geom.contype = 0
             geom.conaffinity = 0
 
@@ -290,10 +283,6 @@ class Robot:
         """Make the hand's pose, as last computed, the reference the next action moves from."""
         self._mocap_pos[:] = self._hand_pos
         self._mocap_quat[:] = self._hand_quat
-
-    def reference(self, data: mujoco.MjData) -> np.ndarray:
-        """[m] the grip site's position in the reference pose the next action moves from."""
-        return data.mocap_pos[self.mocap] - self.grip_to_mocap
 
     def apply(self, move: list[float], grip: float) -> None:
         """Put the target at the reference pose plus `move` [m, world] (within the workspace);

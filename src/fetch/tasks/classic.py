@@ -14,12 +14,13 @@ import mujoco
 import numpy as np
 
 from fetch.robot import RobotConfig
-from fetch.tasks.base import GRIPPER_PARTS, FreeObject, Start, Task, object_parts
+from fetch.tasks.base import GRIPPER_PARTS, FreeObject, Start, Task, object_parts, sample_clear_xy
 
 
 class _ClassicTask(Task):
     """A classic scene: everything is in gymnasium-robotics' task file, and the start state (the
-    base and object parked as the classic `initial_qpos` says, the arm settled) is loaded."""
+    base and object parked as the classic `initial_qpos` says, the arm settled) is loaded, so the
+    robot config names only the scene, the workspace (none) and whether the fingers are held shut."""
 
     def build(self, spec: mujoco.MjSpec) -> None:
         pass
@@ -30,7 +31,7 @@ class Reach(_ClassicTask):
 
     name = "reach"
     success_rule = "grip site within 5 cm of the goal"
-    robot = RobotConfig(scene="reach.xml", base_xy=(0.4049, 0.48), workspace=None, block_gripper=True)
+    robot = RobotConfig(scene="reach.xml", workspace=None, block_gripper=True)
     parts = GRIPPER_PARTS
     achieved = "grip_pos"
     target_range = 0.15
@@ -66,13 +67,11 @@ class _ObjectTask(_ClassicTask):
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
               start: Start) -> np.ndarray:
         p = self.params
-        grip = start.grip
-        # Only the object's xy is drawn; its height, orientation and velocity stay as settled.
-        xy = grip[:2]
-        while np.linalg.norm(xy - grip[:2]) < p.min_start_distance:
-            xy = grip[:2] + rng.uniform(-p.obj_range, p.obj_range, size=2)
+        # Only the object's xy is drawn (redrawn until clear of the grip, as there); its height,
+        # orientation and velocity stay as settled.
+        xy = sample_clear_xy(rng, start.grip, p.obj_range, [(start.grip, p.min_start_distance)])
         data.qpos[self.object.qpos:self.object.qpos + 2] = xy
-        goal = grip + rng.uniform(-p.target_range, p.target_range, size=3)
+        goal = start.grip + rng.uniform(-p.target_range, p.target_range, size=3)
         goal += np.asarray(p.target_offset)
         goal[2] = start.object_z if start.object_z is not None else np.nan
         if p.target_in_the_air and rng.uniform() < 0.5:
@@ -84,7 +83,7 @@ class Push(_ObjectTask):
     """Push a block, fingers closed, to a goal on the table."""
 
     name = "push"
-    robot = RobotConfig(scene="push.xml", workspace=None, block_gripper=True, start_height=0.0)
+    robot = RobotConfig(scene="push.xml", workspace=None, block_gripper=True)
     params = ObjectGoal(obj_range=0.15, target_range=0.15)
 
 
@@ -92,7 +91,7 @@ class PickPlace(_ObjectTask):
     """Pick a block and bring it to a goal on the table or, half of the time, up to 45 cm above it."""
 
     name = "pick_place"
-    robot = RobotConfig(scene="pick_and_place.xml", workspace=None, start_height=0.2)
+    robot = RobotConfig(scene="pick_and_place.xml", workspace=None)
     params = ObjectGoal(obj_range=0.15, target_range=0.15, target_in_the_air=True)
 
 
@@ -100,6 +99,5 @@ class Slide(_ObjectTask):
     """Hit a low-friction puck so it slides to a goal out of reach on a long table."""
 
     name = "slide"
-    robot = RobotConfig(scene="slide.xml", base_xy=(0.05, 0.48), workspace=None, block_gripper=True,
-                        start_height=-0.02)
+    robot = RobotConfig(scene="slide.xml", workspace=None, block_gripper=True)
     params = ObjectGoal(obj_range=0.1, target_range=0.3, target_offset=(0.4, 0.0, 0.0))
