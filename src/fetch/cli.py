@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import collections
 import contextlib
 import math
 import os
@@ -10,6 +11,7 @@ import pathlib
 import signal
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any
 
 Command = Callable[[argparse.Namespace], int]
 
@@ -66,12 +68,11 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
 def run_collect(args: argparse.Namespace) -> int:
     import fetch  # noqa: F401  (registers the ids)
     from fetch.teleop import build
-    from fetch.teleop.stopping import stop_on_signals
 
-    with stop_on_signals():
-        session = build.session_from_args(args)
-        summary = session.run()
-        print(summary.describe(), flush=True)
+    # main() and collect_main() hold the stop handlers (fetch.teleop.stopping) around this.
+    session = build.session_from_args(args)
+    summary = session.run()
+    print(summary.describe(), flush=True)
     return summary.exit_status
 
 
@@ -117,9 +118,7 @@ def _info_npz(path: str, files: list[pathlib.Path]) -> int:
     demos = [load_npz(f) for f in files]
     envs = sorted({str(d.metadata["env_id"]) for d in demos})
     lengths = [d.steps for d in demos]
-    devices: dict[str, int] = {}
-    for d in demos:
-        devices[str(d.metadata.get("device", "?"))] = devices.get(str(d.metadata.get("device", "?")), 0) + 1
+    devices = collections.Counter(str(d.metadata.get("device", "?")) for d in demos)
     successful = sum(bool(d.metadata.get("successful", d.metadata.get("success", False))) for d in demos)
     print(f"{path} (npz: the seed's per-demo files)\n  env         {', '.join(envs)}")
     print(f"  demos       {len(demos)} ({successful} successful), {sum(lengths)} steps; length min {min(lengths)} "
@@ -145,7 +144,6 @@ def run_video(args: argparse.Namespace) -> int:
     from fetch._progress import progress
     from fetch.dataset import open_dataset
     from fetch.dataset.frames import StateRenderer
-    from fetch.dataset.npz import load_npz, npz_files
     from fetch.dataset.reader import require_valid
     from fetch.dataset.video import check_video_path, write_video
     from fetch.errors import FetchError
@@ -154,10 +152,7 @@ def run_video(args: argparse.Namespace) -> int:
         raise FetchError(f"--fps must be a positive number of frames per second, got {args.fps}")
     out = check_video_path(args.video, args.size, args.size)
     with contextlib.ExitStack() as stack:
-        if files := npz_files(args.file):
-            if args.demo is not None:
-                files = [f for f in files if args.demo in (f.stem, f.name)] or _no_such_npz(args.demo, files)
-            demos = [load_npz(f) for f in files]
+        if demos := _npz_demos(args.file, args.demo):
             env_id, env_kwargs = str(demos[0].metadata["env_id"]), {}
             states_of = {d.path.stem: d.arrays["states"] for d in demos}
         else:
@@ -180,11 +175,20 @@ def run_video(args: argparse.Namespace) -> int:
     return 0
 
 
-def _no_such_npz(demo: str, files: list[pathlib.Path]) -> list[pathlib.Path]:
+def _npz_demos(path: str, demo: str | None) -> list[Any]:
+    """The seed-format files `path` names (all, or the one `--demo` names), read; [] when `path` is an
+    HDF5 dataset."""
+    from fetch.dataset.npz import load_npz, npz_files
     from fetch.errors import FetchError
 
-    raise FetchError(f"no demo file {demo!r}; this directory has {', '.join(f.stem for f in files[:5])}"
-                     + (" ..." if len(files) > 5 else ""))
+    files = npz_files(path)
+    if files and demo is not None:
+        chosen = [f for f in files if demo in (f.stem, f.name)]
+        if not chosen:
+            raise FetchError(f"no demo file {demo!r}; this directory has {', '.join(f.stem for f in files[:5])}"
+                             + (" ..." if len(files) > 5 else ""))
+        files = chosen
+    return [load_npz(f) for f in files]
 
 
 def run_check(args: argparse.Namespace) -> int:
@@ -198,14 +202,11 @@ def _check(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
     import fetch  # noqa: F401
     from fetch._progress import progress
     from fetch.dataset import open_dataset
-    from fetch.dataset.npz import check_npz, load_npz, npz_files
+    from fetch.dataset.npz import check_npz
     from fetch.dataset.reader import require_valid
     from fetch.dataset.replay import check_demo, make_replay_env
 
-    if files := npz_files(args.file):
-        if args.demo is not None:
-            files = [f for f in files if args.demo in (f.stem, f.name)] or _no_such_npz(args.demo, files)
-        demos = [load_npz(f) for f in files]
+    if demos := _npz_demos(args.file, args.demo):
         env = gymnasium.make(str(demos[0].metadata["env_id"])).unwrapped
         checks = (check_npz(d, env) for d in demos)
         names = [d.path.name for d in demos]
@@ -314,7 +315,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             parser = _parser()
         except KeyboardInterrupt as e:
-            return 128 + int(getattr(e, "signum", signal.SIGINT))
+            return _stopped(e)
         return _run(parser.parse_args(argv))
 
 
@@ -330,6 +331,11 @@ def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_d
         return _run(p.parse_args(argv), prog)
 
 
+def _stopped(e: KeyboardInterrupt) -> int:
+    """The exit status after a stop signal: 128 + its number (Ctrl-C: 130, SIGTERM: 143)."""
+    return 128 + int(getattr(e, "signum", signal.SIGINT))
+
+
 def _run(args: argparse.Namespace, prog: str | None = None) -> int:
     from fetch.errors import FetchError
 
@@ -338,8 +344,8 @@ def _run(args: argparse.Namespace, prog: str | None = None) -> int:
     except FetchError as e:
         print(f"{prog or 'gym-fetch ' + args.command}: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as e:  # Ctrl-C, or (collect) SIGTERM: 128 + the signal's number
-        return 128 + int(getattr(e, "signum", 2))
+    except KeyboardInterrupt as e:
+        return _stopped(e)
     except BrokenPipeError:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
