@@ -1,7 +1,8 @@
-"""Shared fixtures: every registered env id, and envs closed after each test."""
+"""Shared fixtures: every registered env id, envs closed after each test, a small real dataset."""
 
 from __future__ import annotations
 
+import pathlib
 from collections.abc import Iterator
 
 import gymnasium as gym
@@ -44,3 +45,14 @@ def rollout_actions(env: gym.Env, n: int, seed: int = 0):
     space = env.action_space
     space.seed(seed)
     return [space.sample() for _ in range(n)]
+
+
+@pytest.fixture(scope="session")
+def reach_demos(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    """A collector's directory with two Reach-v2 expert demos, made once per run; copy it to change it."""
+    from fetch.cli import main
+
+    out = tmp_path_factory.mktemp("reach") / "demos"
+    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "2", "--render", "none",
+                 "--out", str(out)]) == 0
+    return out

@@ -9,14 +9,6 @@ import pytest
 from fetch.cli import main
 
 
-@pytest.fixture(scope="module")
-def dataset(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
-    out = tmp_path_factory.mktemp("bad") / "reach"
-    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "2", "--render", "none",
-                 "--out", str(out)]) == 0
-    return out
-
-
 @pytest.mark.parametrize(("argv", "says"), [
     (["replay", "{d}", "--demo", "abc"], "neither an index nor a demo name"),
     (["replay", "{d}", "--video", "{t}/v.gif", "--fps", "nan"], "--fps must be a positive"),
@@ -24,10 +16,10 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
     (["merge", "{d}", "{d}/", "--out", "{t}/m.hdf5"], "same dataset"),
     (["collect", "--env", "Reach-v2", "--device", "expert", "--render", "none", "--out", ""], "--out must name"),
 ])
-def test_bad_arguments_are_one_line_errors(dataset: pathlib.Path, tmp_path: pathlib.Path,
+def test_bad_arguments_are_one_line_errors(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
                                            capsys: pytest.CaptureFixture[str], argv: list[str], says: str) -> None:
     before = sorted(p.name for p in tmp_path.iterdir())
-    code = main([a.format(d=dataset, t=tmp_path) for a in argv])
+    code = main([a.format(d=reach_demos, t=tmp_path) for a in argv])
     err = capsys.readouterr().err
     assert code == 2
     assert says in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err

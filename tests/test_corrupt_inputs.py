@@ -24,14 +24,6 @@ EPISODE = f"episodes/{DEMO}.hdf5"
 INDEX = "demos.hdf5"
 
 
-@pytest.fixture(scope="module")
-def base(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
-    out = tmp_path_factory.mktemp("corrupt") / "base"
-    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "2", "--render", "none",
-                 "--out", str(out)]) == 0
-    return out
-
-
 # -- the corruptions --------------------------------------------------------------------------------
 
 def flip(path: pathlib.Path, offset: int) -> None:
@@ -192,7 +184,7 @@ def check_correct_result(tool: str, tmp: pathlib.Path, d: pathlib.Path, out: str
 
 @pytest.mark.parametrize("tool", list(TOOLS))
 @pytest.mark.parametrize("case", list(CASES))
-def test_corrupt_input_is_refused_cleanly_or_handled(base: pathlib.Path, tmp_path: pathlib.Path, case: str,
+def test_corrupt_input_is_refused_cleanly_or_handled(reach_demos: pathlib.Path, tmp_path: pathlib.Path, case: str,
                                                      tool: str, capsys: pytest.CaptureFixture[str],
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     if tool == "export_minari":
@@ -200,8 +192,8 @@ def test_corrupt_input_is_refused_cleanly_or_handled(base: pathlib.Path, tmp_pat
         monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
     spec = CASES[case]
     d = tmp_path / "dataset"
-    shutil.copytree(base, d)
-    shutil.copytree(base, tmp_path / "other")  # merge's second, sound input
+    shutil.copytree(reach_demos, d)
+    shutil.copytree(reach_demos, tmp_path / "other")  # merge's second, sound input
     spec.corrupt(d)
     argv = [a.format(d=d, t=tmp_path) for a in TOOLS[tool]]
     before = snapshot(tmp_path)
