@@ -14,8 +14,7 @@ import math
 import mujoco
 import numpy as np
 
-CONTROL_DT = 0.04
-"""[s] the control period; velocities in observations are multiplied by it, as in the classic suite."""
+from fetch.timing import CONTROL_DT
 
 _EPS4 = float(np.finfo(np.float64).eps) * 4.0
 
@@ -161,6 +160,19 @@ class Observer:
         obs = self._matrix @ sensordata
         for row, adr in self._euler:
             obs[row:row + 3] = quat2euler(sensordata[adr:adr + 4].tolist())
+        return obs
+
+    def batch(self, sensordata: np.ndarray) -> np.ndarray:
+        """`__call__` for many worlds (`fetch.vector`): sensordata rows (worlds, nsensordata) to
+        observation rows (worlds, size), each bit for bit what `__call__` gives for that row.
+
+        A stacked matmul is one matrix-vector product per row, as `__call__` does; one matrix
+        product (`rows @ matrix.T`) would sum in another order and differ in the last bit. The
+        Euler angles stay per row: `quat2euler` uses `math.hypot`, which numpy does not reproduce."""
+        rows = np.ascontiguousarray(sensordata, dtype=np.float64)
+        obs = np.matmul(self._matrix, rows[:, :, None])[:, :, 0]
+        for row, adr in self._euler:
+            obs[:, row:row + 3] = [quat2euler(q) for q in rows[:, adr:adr + 4].tolist()]
         return obs
 
 

@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 
 from fetch.errors import FetchError
+from fetch.timing import N_SUBSTEPS, PHYSICS_DT
 
 ACTION_STEP = 0.05
 """[m] how far the hand's target moves along each world axis per step at |a| = 1 (the classic suite)."""
@@ -21,9 +22,6 @@ classic suite: the target orientation is halfway between the hand's and fingers-
 
 GRIPPER_QUAT = QUAT_STEP / np.sqrt(2.0)
 """World orientation of the gripper (w, x, y, z): fingers pointing down, closing along world y."""
-
-N_SUBSTEPS = 20
-"""Physics steps of 2 ms per control step: dt = 0.04 s, 25 Hz, as in the classic suite."""
 
 CLASSIC_START_OFFSET = np.array([-0.498, 0.005, -0.431])
 """[m] the classic suite's gripper start, relative to the grip site in the robot's zero pose."""
@@ -142,7 +140,7 @@ def _room_spec(config: RobotConfig) -> mujoco.MjSpec:
     assets = robot_asset_dir()
     root = f"""<mujoco model="fetch">
   <compiler angle="radian" meshdir="{assets / 'stls' / 'fetch'}" texturedir="{assets / 'textures'}"/>
-  <option timestep="0.002"/>
+  <option timestep="{PHYSICS_DT}"/>
   <include file="{assets / 'fetch' / 'shared.xml'}"/>
   <include file="{SCENE_XML}"/>
   <worldbody><include file="{assets / 'fetch' / 'robot.xml'}"/></worldbody>
@@ -169,6 +167,9 @@ def _classic_spec(config: RobotConfig) -> mujoco.MjSpec:
     start is kept exactly."""
     assets = robot_asset_dir()
     spec = mujoco.MjSpec.from_file(str(assets / "fetch" / str(config.scene)))
+    if spec.option.timestep != PHYSICS_DT:
+        raise FetchError(f"{config.scene} steps physics by {spec.option.timestep} s; the suite's control "
+                         f"period assumes {PHYSICS_DT} s (a different gymnasium-robotics?)")
     # Absolute asset paths, so the model's XML (stored in datasets) compiles from anywhere.
     spec.meshdir = str(assets / "stls" / "fetch")
     spec.texturedir = str(assets / "textures")
@@ -303,6 +304,19 @@ class Robot:
             # saturated by the actuators' ctrlrange (+1 opens fully, -1 closes).
             for act, adr in self._finger_ctrl_qpos:
                 ctrl[act] = qpos.item(adr) + grip
+
+    def apply_batch(self, mocap_pos: np.ndarray, mocap_quat: np.ndarray, ctrl: np.ndarray,
+                    qpos: np.ndarray, move: np.ndarray, grip: np.ndarray) -> None:
+        """`apply` for many worlds at once (`fetch.vector`): the MjData fields as (worlds, ...) rows,
+        written in place; `move` (worlds, 3) [m, world] and `grip` (worlds,) as float64. Element for
+        element the same float64 operations as `apply`, so each row ends up bit for bit the same."""
+        target = mocap_pos[:, self.mocap] + move
+        if self._box is not None:
+            target = np.minimum(np.maximum(target, self._box[0]), self._box[1])
+        mocap_pos[:, self.mocap] = target
+        mocap_quat[:, self.mocap] += QUAT_STEP
+        for act, adr in self._finger_ctrl_qpos:
+            ctrl[:, act] = 0.0 if self._block_gripper else qpos[:, adr] + grip
 
     def advance(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Run one control period of physics and leave the state current for the observation.

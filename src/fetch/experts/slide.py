@@ -35,8 +35,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fetch.experts.base import Expert
-from fetch.observation import CONTROL_DT
+from fetch.experts.base import Expert, Stage
+from fetch.timing import CONTROL_DT
 
 DECELERATION = 0.98
 """[m/s^2] a puck gliding along an axis decelerates this much (friction 0.1 times g)."""
@@ -174,13 +174,13 @@ class Slide(Expert):
         goal = np.asarray(obs["desired_goal"])
         self.goal, self.steps = goal[:2].copy(), self.steps + 1
         rest = puck[:2] + glide(velocity)
-        if self.stage == "watch" and self.timer < 2:
+        if self.stage is Stage.WATCH and self.timer < 2:
             return self.back_off(grip, puck)
-        if self.stage in ("start", "watch", "done") or self.stage == "line_up":
+        if self.stage in (Stage.START, Stage.WATCH, Stage.DONE) or self.stage is Stage.LINE_UP:
             self.plan(rest, goal, grip)
-        if self.stage == "done":
+        if self.stage is Stage.DONE:
             return self.toward(grip, self.hold)
-        if self.stage == "line_up":
+        if self.stage is Stage.LINE_UP:
             hand = float(np.linalg.norm(self.part(obs, "grip_velp")[:2])) / CONTROL_DT
             return self.line_up(grip, puck, rest, float(np.linalg.norm(velocity)), hand)
         return self.push(grip, puck, velocity)
@@ -188,7 +188,7 @@ class Slide(Expert):
     def plan(self, rest: np.ndarray, goal: np.ndarray, grip: np.ndarray) -> None:
         """Choose the next push from where the puck will come to rest."""
         error = goal[:2] - rest
-        if np.linalg.norm(error) < (self.leave if self.stage == "done" else self.arrived):
+        if np.linalg.norm(error) < (self.leave if self.stage is Stage.DONE else self.arrived):
             self.finish(grip, goal)
             return
         dx, dy = float(error[0]), float(error[1])
@@ -208,11 +208,11 @@ class Slide(Expert):
                 axis = np.array([sx, 0.0]) if abs(dx) > abs(dy) else np.array([0.0, sy])
                 line = axis if abs(abs(dx) - abs(dy)) > min(abs(dx), abs(dy)) else diagonal
                 target = goal[:2]
-        changed = not np.allclose(line, self.line) or self.stage != "line_up"
+        changed = not np.allclose(line, self.line) or self.stage is not Stage.LINE_UP
         self.line, self.target = line, target
         self.motion, self.offset = self.contact(line)
         if changed:
-            self.advance("line_up")
+            self.advance(Stage.LINE_UP)
 
     def two_strikes(self, rest: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The first of two strikes (its line and where it should leave the puck) that take the
@@ -260,9 +260,9 @@ class Slide(Expert):
 
     def finish(self, grip: np.ndarray, goal: np.ndarray) -> None:
         """No more pushes: hold still, clear above the puck."""
-        if self.stage != "done":
+        if self.stage is not Stage.DONE:
             self.hold = np.array([*grip[:2], goal[2] + self.hover])
-            self.advance("done")
+            self.advance(Stage.DONE)
 
     def start(self, puck: np.ndarray, gap: float) -> np.ndarray:
         """[m] where the grip site is when the fingers are `gap` behind the puck (xy)."""
@@ -279,7 +279,7 @@ class Slide(Expert):
         across = float(np.linalg.norm((grip[:2] - start) - ((grip[:2] - start) @ self.motion) * self.motion))
         if low and off < self.close and across < self.aligned and speed < self.at_rest and hand < self.still:
             self.pushes += 1
-            self.advance("push")
+            self.advance(Stage.PUSH)
             return self.toward(grip, np.array([*start, puck[2]]))
         if gliding and _clear(puck[None, :2], np.linspace(grip[:2], start, 9), RADIUS + self.margin):
             return self.toward(grip, np.array([*start, puck[2]]))
@@ -291,7 +291,7 @@ class Slide(Expert):
     def push(self, grip: np.ndarray, puck: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """Strike: `STRIKE_STEPS` steps of one action along the motion, sized for the distance."""
         if self.timer > STRIKE_STEPS:
-            self.advance("watch")
+            self.advance(Stage.WATCH)
             return self.back_off(grip, puck)
         if self.timer == 1:  # the first step of the push (the line-up's step was the 0th)
             left = float((self.target - puck[:2]) @ self.line)
