@@ -18,7 +18,7 @@ import fetch  # first: it picks the offscreen GL backend before mujoco is import
 import mujoco
 import numpy as np
 
-from fetch.teleop.devices import ExpertDevice
+from fetch.teleop.expert import ExpertDevice
 from fetch.teleop.session import CollectConfig, Session, make_env
 
 

@@ -20,7 +20,8 @@ import mujoco
 import numpy as np
 
 import fetch
-from fetch.teleop.devices import ExpertDevice
+from fetch.teleop.expert import ExpertDevice
+from fetch.teleop.gamepad import KIND as GAMEPAD
 from fetch.teleop.session import CollectConfig, HudState, Session, make_env
 from fetch.teleop.viewer import Viewer
 
@@ -49,7 +50,7 @@ def main() -> None:
         config = CollectConfig(env_id=args.env, out=out, episodes=args.demos, device="expert", render="human",
                                control_hz=args.hz)
         env = make_env(config)
-        viewer = TimedViewer(env, "gamepad")
+        viewer = TimedViewer(env, GAMEPAD.legend)
         session = Session(config, ExpertDevice(env), env=env, display=viewer, log=lambda text: None)
         summary = session.run()
     period = session.clock.period

@@ -11,10 +11,12 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pygame
 import pytest
 
+import fetch  # noqa: F401  (registers the ids)
 import vpad
 from fetch.errors import FetchError
 from fetch.teleop.devices import Command
@@ -67,11 +69,19 @@ def test_stick_and_triggers_give_the_seed_world_mapping() -> None:
     np.testing.assert_allclose(no_invert.action, [0, -1, 0, 1])
 
 
-def test_action_is_scaled_then_clipped() -> None:
+def test_action_is_scaled_and_only_the_env_clips_it() -> None:
     (half,) = step(Mapper(GamepadConfig(pos_scale=0.5)), PadState(lx=1.0, rt=1.0))
     np.testing.assert_allclose(half.action, [0.5, 0, 0.5, 1])
     (double,) = step(Mapper(GamepadConfig(pos_scale=2.0, deadzone=0.0)), PadState(lx=0.75, lt=1.0))
-    np.testing.assert_allclose(double.action, [1, 0, -1, 1])
+    np.testing.assert_allclose(double.action, [1.5, 0, -2, 1])  # the pad's command, unclipped
+    # The env is the one place an action is clipped; what it applied is what a session records.
+    env, clipped = gym.make("Reach-v2"), gym.make("Reach-v2")
+    env.reset(seed=3)
+    clipped.reset(seed=3)
+    obs, *_ = env.step(double.action)
+    np.testing.assert_array_equal(env.unwrapped.last_action, np.float32([1, 0, -1, 1]))
+    expected, *_ = clipped.step(np.float32([1, 0, -1, 1]))
+    np.testing.assert_array_equal(obs["observation"], expected["observation"])
 
 
 def test_precision_scales_motion_while_held_not_the_gripper() -> None:

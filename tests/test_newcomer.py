@@ -14,7 +14,7 @@ import pytest
 
 from fetch.cli import main
 from fetch.dataset import open_dataset
-from fetch.teleop.devices import _EVENT_KEYS, SCRIPT_FORMAT
+from fetch.teleop.scripted import _EVENT_KEYS, SCRIPT_FORMAT
 
 # ---- --device scripted ----
 

@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 
 from fetch.errors import FetchError
-from fetch.teleop.keyboard import KeyboardState, keyboard_command
+from fetch.teleop.devices import HandControls
+from fetch.teleop.keyboard import KIND as KEYBOARD
+from fetch.teleop.keyboard import keyboard_command
 from fetch.teleop.session import HudState
 from fetch.teleop.viewer import Viewer, camera_yaw
 
@@ -75,10 +77,10 @@ def test_keyboard_drives_the_collector_through_real_key_events(tmp_path: pathlib
 
 
 def test_keyboard_mapping() -> None:
-    state = KeyboardState()
+    state = HandControls()
     c = keyboard_command({"up"}, set(), state)
     np.testing.assert_allclose(c.action, [0, 1, 0, 1])
-    c = keyboard_command({"d", "r", "left shift"}, {"space"}, state, precision_scale=0.3)
+    c = keyboard_command({"d", "r", "left shift"}, {"space"}, state)
     np.testing.assert_allclose(c.action, [0.3, 0, 0.3, -1], atol=1e-6)
     assert c.precision and state.gripper_closed
     c = keyboard_command({"up"}, {"c", "return"}, state, yaw=np.pi / 2)
@@ -118,7 +120,7 @@ def make_viewer(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[], Viewer
     def make() -> Viewer:
         env = gym.make("PickPlace-v2")
         env.reset(seed=0)
-        made.append(Viewer(env, "keyboard"))
+        made.append(Viewer(env, KEYBOARD.legend))
         return made[-1]
 
     yield make

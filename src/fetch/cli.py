@@ -18,9 +18,10 @@ Command = Callable[[argparse.Namespace], int]
 
 def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     """The collector's flags: the seed script's (same names and meaning) plus ours."""
+    from fetch.dataset.formats import FORMATS
     from fetch.tasks import ENV_IDS
-    from fetch.teleop.devices import SCRIPT_FORMAT
-    from fetch.teleop.gamepad import add_gamepad_arguments
+    from fetch.teleop.registry import DEVICE_NAMES, KINDS
+    from fetch.teleop.session import RENDER_CHOICES
 
     p.add_argument("--env", default="Bin-pick-v2", metavar="ID",
                    help=f"the task (default Bin-pick-v2), one of: {', '.join(ENV_IDS)}")
@@ -44,13 +45,13 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
                    help="end the attempt when the env reports terminated (default)")
     p.add_argument("--keep-failures", action="store_true",
                    help="also save failed attempts (in mask/failed; default off)")
-    p.add_argument("--render", default="auto", choices=["auto", "human", "rgb_array", "none"],
+    p.add_argument("--render", default="auto", choices=RENDER_CHOICES,
                    help="auto (default): a window when there is a display; rgb_array (the seed's) is headless "
                         "like none")
-    p.add_argument("--device", default="gamepad", choices=["gamepad", "xbox", "keyboard", "scripted", "expert"],
-                   help="what drives the arm (default gamepad; xbox is the seed's name for it). Without a display or a "
-                        "pad: expert or scripted")
-    p.add_argument("--format", default="hdf5", choices=["hdf5", "npz"],
+    p.add_argument("--device", default="gamepad", choices=DEVICE_NAMES,
+                   help="what drives the arm (default gamepad): " + "; ".join(f"{k.name}: {k.summary}" for k in KINDS)
+                        + ". Without a display or a pad: expert or scripted")
+    p.add_argument("--format", default=FORMATS[0], choices=FORMATS,
                    help="hdf5 (default): robomimic's layout, replayable; npz: the seed's per-demo files")
     p.add_argument("--reward-type", default="sparse", choices=["sparse", "dense"],
                    help="sparse (default): -1 until the goal is reached, then 0; dense: minus the distance [m]")
@@ -58,11 +59,9 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
                    help="record these cameras' images too, comma-separated (front, side, behind, wrist); default none")
     p.add_argument("--image-size", type=int, default=84, help="recorded image width and height [px] (default 84)")
     p.add_argument("--verbose", action="store_true", help="print how every attempt ended (default off)")
-    g = p.add_argument_group("gamepad (the seed's flags; raw indices override the SDL layout)")
-    add_gamepad_arguments(g)
-    g.add_argument("--frame", default="camera", choices=["camera", "world"],
-                   help="camera (default): stick 'up' moves away from the viewer; world: the seed's fixed mapping")
-    p.add_argument("--scripted-json", default=None, metavar="FILE", help=SCRIPT_FORMAT)
+    for kind in KINDS:
+        if kind.add_arguments is not None:
+            kind.add_arguments(p.add_argument_group(f"--device {kind.name}"))
 
 
 def run_collect(args: argparse.Namespace) -> int:

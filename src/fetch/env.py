@@ -17,9 +17,10 @@ import numpy as np
 from fetch import observation as ob
 from fetch import rendering
 from fetch.errors import FetchError, UnknownNameError
-from fetch.robot import ACTION_STEP, GRIPPER_QUAT, N_SUBSTEPS, Robot, build_spec
+from fetch.robot import ACTION_STEP, GRIPPER_QUAT, Robot, build_spec
 from fetch.tasks import task_class
 from fetch.tasks.base import Start, Task, goal_distance, mocap_index
+from fetch.timing import CONTROL_DT, N_SUBSTEPS
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 """What `get_state` saves: everything `mj_step` reads (qpos, qvel, act, ctrl, mocap, warm start, time)."""
@@ -106,7 +107,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     `model`, `data` are the MjModel / MjData; `observation_layout` names the observation's slices.
     """
 
-    metadata = {"render_modes": list(RENDER_MODES), "render_fps": int(round(1.0 / (0.002 * N_SUBSTEPS)))}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": round(1.0 / CONTROL_DT)}
 
     def __init__(self, task: str = "pick_place", reward_type: str = "sparse",
                  render_mode: str | None = None, width: int = 480, height: int = 480,
@@ -152,6 +153,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         })
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self._state_buf = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
+        self.last_action: np.ndarray = np.zeros(4, np.float32)
+        """The action of the last step, as clipped and applied (what a recorder stores)."""
         mujoco.mj_setState(self.model, self.data, self._start_state, STATE_SPEC)
         mujoco.mj_forward(self.model, self.data)
         self.robot.hold()
@@ -161,7 +164,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     @property
     def dt(self) -> float:
         """[s] the control period."""
-        return float(self.model.opt.timestep) * N_SUBSTEPS
+        return CONTROL_DT
 
     @property
     def goal(self) -> np.ndarray:
@@ -195,7 +198,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                              "simulation unstable (valid: finite values, clipped to [-1, 1])")
         # Clipped and scaled in the action's own precision, as the classic suite does: a float32
         # action moves the target by float32(0.05 * a), a float64 one by the float64 product.
-        a = np.clip(a, -1.0, 1.0)
+        a = np.clip(a, -1.0, 1.0)  # the one clip of an action on its way from a device to the physics
+        self.last_action = a
         self.robot.apply((a[:3] * ACTION_STEP).tolist(), float(a[3]))
         self.robot.advance(self.model, self.data)
         obs, info = self._observe()

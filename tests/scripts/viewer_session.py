@@ -11,7 +11,8 @@ import sys
 
 import numpy as np
 
-from fetch.teleop.devices import ExpertDevice
+from fetch.teleop.expert import ExpertDevice
+from fetch.teleop.gamepad import KIND as GAMEPAD
 from fetch.teleop.session import CollectConfig, HudState, Session, make_env
 from fetch.teleop.viewer import Viewer
 
@@ -32,7 +33,7 @@ def main() -> None:
     out, shot = sys.argv[1], sys.argv[2]
     config = CollectConfig(env_id="PickPlace-v2", out=out, episodes=2, device="expert", render="human")
     env = make_env(config)
-    viewer = ShootingViewer(env, "gamepad", path=shot)
+    viewer = ShootingViewer(env, GAMEPAD.legend, path=shot)
     session = Session(config, ExpertDevice(env), env=env, display=viewer)
     import pygame
 

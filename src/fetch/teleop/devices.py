@@ -1,29 +1,31 @@
-"""What drives the arm during collection: a device is polled once per control tick for a `Command`."""
+"""What drives the arm during collection: the device interface and the declaration each device makes.
+
+A device is polled once per control tick for a `Command`. Each kind of device declares itself once,
+as a `DeviceKind` beside its code (its name, whether a person drives it, its legend, its flags and
+how to build it); `fetch.teleop.registry` lists them, and the CLI, the session and the viewer read
+only that list.
+"""
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
-import json
 import math
-import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping
 from typing import Any, Protocol
 
 import numpy as np
 
-from fetch.errors import FetchError
-
-DEVICES = ("gamepad", "keyboard", "scripted", "expert")
-"""Valid `--device` choices; "xbox" (the seed's name) means "gamepad"."""
-
 
 @dataclasses.dataclass(frozen=True)
 class Command:
-    """One tick's input: the 4-D action in [-1, 1] and the episode events.
+    """One tick's input: the 4-D action (the env clips it to [-1, 1]) and the episode events.
 
     `discard` ends the attempt and drops it; `finish` ends it and keeps it if it succeeded;
     `quit` ends the session; `paused` (e.g. a pad unplugged) holds the arm without stepping;
-    `switch_camera` asks the viewer for the next camera; `precision` says slow mode is on (HUD).
+    `switch_camera` asks the viewer for the next camera; `precision` says slow mode is on (HUD);
+    `gripper_closed` is the state a device with a gripper toggle holds (None: read from the
+    action's sign, for devices that send a[3] directly).
     """
 
     action: np.ndarray
@@ -35,6 +37,14 @@ class Command:
     precision: bool = False
     status: str = ""
     """A short line for the HUD (e.g. "precision", "pad disconnected")."""
+    gripper_closed: bool | None = None
+
+    @property
+    def closes_gripper(self) -> bool:
+        """Whether this command has the fingers closed (what the HUD shows)."""
+        if self.gripper_closed is not None:
+            return self.gripper_closed
+        return bool(self.action[3] < 0)
 
 
 def idle() -> np.ndarray:
@@ -45,6 +55,35 @@ def rotate(x: float, y: float, yaw: float) -> tuple[float, float]:
     """(x, y) turned by `yaw` [rad] counter-clockwise: input in the viewer's frame to the world's."""
     c, s = math.cos(yaw), math.sin(yaw)
     return c * x - s * y, s * x + c * y
+
+
+@dataclasses.dataclass
+class HandControls:
+    """The part that a pad and a keyboard share: a gripper toggled by presses, one-shot events, a
+    precision mode. `command` turns one tick's motion and presses into a `Command`."""
+
+    gripper_open: float = 1.0
+    gripper_close: float = -1.0
+    precision_scale: float = 0.3
+    gripper_closed: bool = False
+
+    def reset(self) -> None:
+        """A new attempt: the gripper opens."""
+        self.gripper_closed = False
+
+    def command(self, motion: tuple[float, float, float], pressed: Collection[str], precision: bool,
+                scale: float = 1.0) -> Command:
+        """`motion` (dx, dy, dz, world frame, each in [-1, 1] at full input) times `scale` (and the
+        precision scale while `precision` is held); `pressed`: the roles pressed since the last tick
+        ("gripper", "discard", "finish", "quit", "camera")."""
+        if "gripper" in pressed:
+            self.gripper_closed = not self.gripper_closed
+        scale *= self.precision_scale if precision else 1.0
+        gripper = self.gripper_close if self.gripper_closed else self.gripper_open
+        action = np.array([motion[0] * scale, motion[1] * scale, motion[2] * scale, gripper], np.float32)
+        return Command(action, discard="discard" in pressed, finish="finish" in pressed, quit="quit" in pressed,
+                       switch_camera="camera" in pressed, precision=precision,
+                       status="precision" if precision else "", gripper_closed=self.gripper_closed)
 
 
 class Device(Protocol):
@@ -62,123 +101,54 @@ class Device(Protocol):
     def close(self) -> None: ...
 
 
-class ExpertDevice:
-    """The task's scripted expert as a device: datasets with no person."""
+@dataclasses.dataclass(frozen=True)
+class DeviceContext:
+    """What a device may need when it is built: the session's env, the collect flags (each device
+    reads its own), the window if there is one, and the yaw of the view to steer in (None: the
+    world's axes)."""
 
-    name = "expert"
-
-    def __init__(self, env: Any) -> None:
-        from fetch.experts import make_expert
-
-        self.expert = make_expert(env)
-
-    def reset(self) -> None:
-        self.expert.reset()
-
-    def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
-        return Command(np.asarray(self.expert(obs), dtype=np.float32))
-
-    def close(self) -> None:
-        pass
+    env: Any
+    args: argparse.Namespace
+    viewer: Any | None
+    yaw: Callable[[], float] | None
 
 
-BUILTIN_IDLE_STEPS = 10
-"""The seed's built-in pattern (no --scripted-json): this many idle steps, then discard the attempt."""
+@dataclasses.dataclass(frozen=True)
+class DeviceKind:
+    """A kind of device, declared once beside its code and listed in `fetch.teleop.registry`.
 
-SCRIPT_FORMAT = f"""\
-A JSON list of events (numbered from 0), one per control tick. {{"action": [dx, dy, dz, gripper]}}
-steps the arm (each number in [-1, 1], clipped; dx, dy, dz move the hand, gripper > 0 opens it and
-< 0 closes it; a missing "action" is [0, 0, 0, 0]). Flags, false when missing: "finish": true ends
-the attempt after that step and keeps it if it succeeded (with --keep-failures, also if not);
-"discard": true (or the seed's "reset": true) ends the attempt and drops it, without stepping;
-"quit": true ends the session, without stepping (the attempt in progress is kept only if it had
-already succeeded). One list serves the whole session: it does not restart at each attempt, so an
-attempt that ends by success, --max-steps or a discard leaves the events after it to the next
-attempt (the run prints where each attempt starts); when the list runs out, the session quits.
-Without --scripted-json: a built-in test pattern ({BUILTIN_IDLE_STEPS} idle steps, then discard), which saves
-nothing (unless --keep-failures with --max-steps under {BUILTIN_IDLE_STEPS})."""
-"""The `--scripted-json` format, as the CLI's help and the README state it."""
-
-
-class ScriptedDevice:
-    """Events from a list (`SCRIPT_FORMAT`), one per tick, across attempts; when it runs out, the session quits.
-
-    `log`, when given, is told where each attempt starts in the list and when the list has run out.
+    Every field is required and checked when the declaration runs (at import): a device that forgets
+    one fails there, not silently in a session.
     """
 
-    name = "scripted"
+    name: str
+    """The `--device` value."""
+    human: bool
+    """A person drives it: the collector opens a window (when there is a display) and paces the arm
+    at the env's real-time rate."""
+    legend: tuple[str, ...]
+    """The controls, one line each, as the viewer shows them (required when a person drives it)."""
+    summary: str
+    """One line for `--help`."""
+    add_arguments: Callable[[Any], None] | None
+    """Adds the device's own flags to an argparse parser or group (None: it has none)."""
+    build: Callable[[DeviceContext], Device]
+    aliases: tuple[str, ...] = ()
+    """Other `--device` values meaning this one (the seed's "xbox" is the gamepad)."""
 
-    def __init__(self, events: Sequence[Command], log: Callable[[str], None] | None = None) -> None:
-        self.events = list(events)
-        self.index = 0
-        self.log = log
-
-    def reset(self) -> None:
-        if self.log is None:
-            return
-        if self.index < len(self.events):
-            self.log(f"scripted: next attempt starts at event {self.index} (of 0..{len(self.events) - 1})")
-        else:
-            self.log(f"scripted: all {len(self.events)} events used; quitting")
-
-    def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
-        if self.index >= len(self.events):
-            return Command(idle(), quit=True)
-        self.index += 1
-        return self.events[self.index - 1]
-
-    def close(self) -> None:
-        pass
-
-
-_FLAGS = ("reset", "discard", "finish", "quit")
-_EVENT_KEYS = {"action", *_FLAGS}
-
-
-def load_script(path: str | os.PathLike[str]) -> list[Command]:
-    """The events of a `--scripted-json` file (`SCRIPT_FORMAT`); FetchError naming the file and the event."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            raw = json.load(f)
-    except OSError as e:
-        raise FetchError(f"cannot read the scripted events file {path}: {e.strerror}") from e
-    except json.JSONDecodeError as e:
-        raise FetchError(f"{path} is not valid JSON: {e.msg} at line {e.lineno} column {e.colno}") from e
-    if not isinstance(raw, list):
-        raise FetchError(f"{path} must hold a JSON list of events, not a {type(raw).__name__}")
-    events = []
-    for i, item in enumerate(raw):
-        where = f"{path}: event {i}"
-        if not isinstance(item, dict):
-            raise FetchError(f"{where} must be an object like {{\"action\": [0, 0, 0, 0]}}, got {item!r}")
-        unknown = set(item) - _EVENT_KEYS
-        if unknown:
-            raise FetchError(f"{where} has unknown keys {sorted(unknown)}; valid: {sorted(_EVENT_KEYS)}")
-        action = item.get("action", [0.0, 0.0, 0.0, 0.0])
-        try:
-            vector = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            vector = np.empty(0)
-        if vector.shape != (4,) or not np.all(np.isfinite(vector)):
-            raise FetchError(f"{where}: \"action\" must be 4 finite numbers (dx, dy, dz, gripper), got {action!r}")
-        for flag in _FLAGS:
-            if item.get(flag, False) not in (True, False):  # also 0 and 1; not "no", which would be true
-                raise FetchError(f"{where}: \"{flag}\" must be true or false, got {item[flag]!r}")
-        events.append(Command(np.clip(vector, -1.0, 1.0).astype(np.float32),
-                              discard=bool(item.get("reset", False) or item.get("discard", False)),
-                              finish=bool(item.get("finish", False)), quit=bool(item.get("quit", False))))
-    return events
-
-
-def builtin_notice(keep_failures: bool, max_steps: int) -> str:
-    """What the collector says, once, when --device scripted runs without --scripted-json."""
-    saves = ("keeps the attempts --max-steps cuts short as failed demos" if keep_failures
-             and max_steps < BUILTIN_IDLE_STEPS else "saves nothing")
-    return (f"no --scripted-json: running the built-in test pattern ({BUILTIN_IDLE_STEPS} idle steps, then discard "
-            f"the attempt; then the events run out and the session quits), which {saves}; "
-            "--scripted-json FILE drives the arm (format: gym-fetch collect --help)")
-
-
-def default_script() -> list[Command]:
-    """The seed's built-in pattern: `BUILTIN_IDLE_STEPS` idle ticks, then end and discard the attempt."""
-    return [Command(idle()) for _ in range(BUILTIN_IDLE_STEPS)] + [Command(idle(), discard=True)]
+    def __post_init__(self) -> None:
+        where = f"device {self.name!r}"
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise TypeError(f"a DeviceKind's name must be a word like 'gamepad', got {self.name!r}")
+        if not isinstance(self.human, bool):
+            raise TypeError(f"{where}: human must be True or False, got {self.human!r}")
+        if not isinstance(self.legend, tuple) or not all(isinstance(line, str) for line in self.legend):
+            raise TypeError(f"{where}: legend must be a tuple of strings, got {self.legend!r}")
+        if self.human and not self.legend:
+            raise TypeError(f"{where}: a person drives it, so it needs a legend (the controls the viewer shows)")
+        if not isinstance(self.summary, str) or not self.summary:
+            raise TypeError(f"{where}: summary must be a line for --help, got {self.summary!r}")
+        if self.add_arguments is not None and not callable(self.add_arguments):
+            raise TypeError(f"{where}: add_arguments must be a function or None, got {self.add_arguments!r}")
+        if not callable(self.build):
+            raise TypeError(f"{where}: build must be a function of a DeviceContext, got {self.build!r}")

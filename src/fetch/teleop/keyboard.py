@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Collection, Mapping
+from typing import Any
 
 import numpy as np
 
-from fetch.teleop.devices import Command, rotate
+from fetch.errors import FetchError
+from fetch.teleop.devices import Command, DeviceContext, DeviceKind, HandControls, rotate
 
 MOVE_KEYS: dict[str, tuple[int, int, int]] = {
     "up": (0, 1, 0), "w": (0, 1, 0), "down": (0, -1, 0), "s": (0, -1, 0),
@@ -20,29 +21,21 @@ GRIPPER_KEY, CAMERA_KEY, FINISH_KEYS, DISCARD_KEYS, QUIT_KEY = "space", "c", ("r
     "escape"
 
 
-@dataclasses.dataclass
-class KeyboardState:
-    gripper_closed: bool = False
-
-
-def keyboard_command(held: Collection[str], pressed: Collection[str], state: KeyboardState, yaw: float = 0.0,
-                     precision_scale: float = 0.3) -> Command:
+def keyboard_command(held: Collection[str], pressed: Collection[str], controls: HandControls,
+                     yaw: float = 0.0) -> Command:
     """The command for keys `held` now and keys `pressed` since the last tick (pygame key names)."""
-    if GRIPPER_KEY in pressed:
-        state.gripper_closed = not state.gripper_closed
     x = y = z = 0.0
     for key in held:
         if key in MOVE_KEYS:
             dx, dy, dz = MOVE_KEYS[key]
             x, y, z = x + dx, y + dy, z + dz
-    x, y = rotate(float(np.clip(x, -1, 1)), float(np.clip(y, -1, 1)), yaw)
-    precision = any(k in held for k in PRECISION_KEYS)
-    scale = precision_scale if precision else 1.0
-    action = np.clip(np.array([x * scale, y * scale, np.clip(z, -1, 1) * scale,
-                               -1.0 if state.gripper_closed else 1.0], np.float32), -1.0, 1.0)
-    return Command(action, discard=any(k in pressed for k in DISCARD_KEYS),
-                   finish=any(k in pressed for k in FINISH_KEYS), quit=QUIT_KEY in pressed,
-                   switch_camera=CAMERA_KEY in pressed, precision=precision)
+    x, y = rotate(min(max(x, -1.0), 1.0), min(max(y, -1.0), 1.0), yaw)
+    roles = {role for role, keys in _ROLE_KEYS.items() if any(k in pressed for k in keys)}
+    return controls.command((x, y, min(max(z, -1.0), 1.0)), roles, any(k in held for k in PRECISION_KEYS))
+
+
+_ROLE_KEYS = {"gripper": (GRIPPER_KEY,), "camera": (CAMERA_KEY,), "finish": FINISH_KEYS, "discard": DISCARD_KEYS,
+              "quit": (QUIT_KEY,)}
 
 
 class KeyboardDevice:
@@ -50,18 +43,18 @@ class KeyboardDevice:
 
     name = "keyboard"
 
-    def __init__(self, viewer: object, yaw: Callable[[], float] | None = None) -> None:
+    def __init__(self, viewer: object, yaw: Any = None) -> None:
         import pygame
 
         self.pygame = pygame
         self.viewer = viewer
         self.yaw = yaw
-        self.state = KeyboardState()
+        self.controls = HandControls()
         self._codes = {name: pygame.key.key_code(name) for name in
                        [*MOVE_KEYS, *PRECISION_KEYS]}
 
     def reset(self) -> None:
-        self.state = KeyboardState()
+        self.controls.reset()
 
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
         pg = self.pygame
@@ -70,7 +63,21 @@ class KeyboardDevice:
         pressed = [pg.key.name(code) for code in getattr(self.viewer, "key_events", [])]
         if getattr(self.viewer, "closed", False):
             pressed.append(QUIT_KEY)
-        return keyboard_command(held, pressed, self.state, self.yaw() if self.yaw else 0.0)
+        return keyboard_command(held, pressed, self.controls, self.yaw() if self.yaw else 0.0)
 
     def close(self) -> None:
         pass
+
+
+def build_keyboard(context: DeviceContext) -> KeyboardDevice:
+    if context.viewer is None:
+        raise FetchError("--device keyboard reads keys in the viewer window; use --render human "
+                         "(or auto, with a display)")
+    return KeyboardDevice(context.viewer, context.yaw)
+
+
+KIND = DeviceKind(
+    name="keyboard", human=True, add_arguments=None, build=build_keyboard,
+    summary="keys in the viewer window (needs a display)",
+    legend=("arrows / WASD: move x/y   R/F: up/down   SPACE: open/close gripper",
+            "SHIFT hold: precision   C: camera   ENTER: keep attempt   BACKSPACE: discard   ESC: quit"))

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import signal
-import sys
 import time
 from collections.abc import Callable
 from typing import Any, Protocol, cast
@@ -14,15 +13,15 @@ import gymnasium as gym
 import numpy as np
 
 import fetch
-from fetch.dataset import schema
+from fetch.dataset.background import MAX_QUEUED
 from fetch.dataset.episode import Demo, EpisodeBuffer
-from fetch.dataset.writer import MAX_QUEUED, BackgroundWriter, DatasetWriter, Header, package_versions
+from fetch.dataset.formats import check_format, open_writer, recorded_layout
 from fetch.errors import FetchError, UnknownNameError
 from fetch.rendering import check_camera
-from fetch.teleop.devices import DEVICES, Command, Device
+from fetch.teleop.devices import Command, Device
+from fetch.teleop.registry import device_kind
 from fetch.teleop.stopping import Stopped, acting_on_stop, polled, raise_if_stopped, signals_held
 
-FORMATS = ("hdf5", "npz")
 RENDER_CHOICES = ("auto", "human", "rgb_array", "none")
 
 
@@ -60,10 +59,8 @@ class CollectConfig:
     def __post_init__(self) -> None:
         if self.env_id not in fetch.ENV_IDS:
             raise UnknownNameError("env", self.env_id, fetch.ENV_IDS)
-        if self.device not in DEVICES:
-            raise UnknownNameError("device", self.device, DEVICES)
-        if self.format not in FORMATS:
-            raise UnknownNameError("format", self.format, FORMATS)
+        object.__setattr__(self, "device", device_kind(self.device).name)  # an alias ("xbox") by its name
+        check_format(self.format, self.cameras)
         if self.render not in RENDER_CHOICES:
             raise UnknownNameError("render mode", self.render, RENDER_CHOICES)
         for name, value, low in (("--episodes", self.episodes, 0), ("--max-steps", self.max_steps, 1),
@@ -78,12 +75,11 @@ class CollectConfig:
                              f"64-bit integer), got {self.seed}")
         if self.control_hz is not None and not (self.control_hz >= 0 and math.isfinite(self.control_hz)):
             raise FetchError(f"--control-hz must be a rate in Hz >= 0 (0: as fast as possible), got {self.control_hz}")
-        if self.cameras and self.format != "hdf5":
-            raise FetchError("--cameras needs --format hdf5 (the seed's npz files hold no images)")
 
     @property
     def human(self) -> bool:
-        return self.device in ("gamepad", "keyboard")
+        """A person drives the device: real-time pacing, and a window when there is a display."""
+        return device_kind(self.device).human
 
     def rate(self, env_dt: float) -> float:
         """[Hz] the control rate to keep; 0 means as fast as possible."""
@@ -180,29 +176,6 @@ def make_env(config: CollectConfig) -> gym.Env:
     return gym.make(config.env_id, max_episode_steps=config.max_steps, reward_type=config.reward_type)
 
 
-def observation_layout(env: gym.Env, config: CollectConfig) -> schema.Layout:
-    space = env.observation_space
-    sizes = tuple((key, int(space[key].shape[0])) for key in schema.OBS_KEYS)  # type: ignore[index]
-    return schema.Layout(obs_sizes=sizes, state_size=env.unwrapped.state_size,  # type: ignore[attr-defined]
-                         cameras=config.cameras, image_size=config.image_size if config.cameras else 0)
-
-
-def open_writer(config: CollectConfig, env: gym.Env, on_saved: Callable[[str, Demo], None]) -> BackgroundWriter:
-    """The writer for `config.out`: resumes what is there (if it matches) and locks it."""
-    base: Any = env.unwrapped
-    if config.format == "npz":
-        from fetch.dataset.npz import NpzWriter
-
-        metadata = {"env_id": config.env_id, "max_steps": config.max_steps, "device": config.device,
-                    "action_space": str(env.action_space), "observation_space": str(env.observation_space),
-                    "argv": sys.argv, "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-        return NpzWriter(config.out, config.env_id, metadata, on_saved)
-    header = Header(env_id=config.env_id, env_kwargs={"reward_type": config.reward_type},
-                    layout=observation_layout(env, config), settings=config.settings(),
-                    model_xml=base.model_xml(), model_hash=base.model_hash(), versions=package_versions())
-    return DatasetWriter(config.out, header, on_saved)
-
-
 class Clock:
     """Ticks on absolute deadlines (no drift); counts the ticks that started late."""
 
@@ -249,12 +222,14 @@ class Session:
         for camera in config.cameras:
             check_camera(self.base.model, camera)
         self.saved_this_session = 0
-        self.writer = open_writer(config, self.env, self._on_saved)
+        self.writer = open_writer(config.format, config.out, self.env, settings=config.settings(),
+                                  device=config.device, cameras=config.cameras, image_size=config.image_size,
+                                  on_saved=self._on_saved)
         if getattr(self.writer, "recovered", 0):
             self.log(f"recovered {self.writer.recovered} demo(s) written just before an interruption")
         # The loop records states only: the writer renders `--cameras` images from them in another
         # process once the demo is saved, so images cost the control loop nothing.
-        self.buffer = EpisodeBuffer(observation_layout(self.env, config).with_cameras((), 0),
+        self.buffer = EpisodeBuffer(recorded_layout(self.env),
                                     capacity=min(config.max_steps, 1024))
         self.clock = Clock(config.rate(self.base.dt))
         self.attempts: list[Attempt] = []
@@ -332,10 +307,10 @@ class Session:
                 break
             if command.paused:
                 continue
-            action = np.clip(np.asarray(command.action, dtype=np.float32), -1.0, 1.0)
-            self._gripper_closed = bool(action[3] < 0)
+            self._gripper_closed = command.closes_gripper
             now = time.time()
-            obs, reward, terminated, truncated, info = env.step(action)
+            obs, reward, terminated, truncated, info = env.step(np.asarray(command.action, dtype=np.float32))
+            action = self.base.last_action  # as the env clipped and applied it
             self.ticks.append((deadline, polled, time.perf_counter()))
             self.base.get_state(out=buf.state_row())
             ok = info["is_success"] >= 1.0

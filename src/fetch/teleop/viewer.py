@@ -20,7 +20,8 @@ import mujoco
 import mujoco.gl_context
 import numpy as np
 
-from fetch._gl import check_gl
+from fetch._environ import environ
+from fetch._gl import check_gl, has_display
 from fetch.errors import FetchError
 from fetch.rendering import camera_names
 from fetch.teleop.session import HudState
@@ -36,14 +37,6 @@ START_TIMEOUT = 30.0
 """[s] for the render thread to make its GL context (well under a second normally)."""
 STOP_TIMEOUT = 5.0
 """[s] for the render thread to finish its frame and free its GL context."""
-LEGEND = {
-    "gamepad": ("left stick: move x/y   RT/LT: up/down   X: open/close gripper",
-                "RB hold: precision   LB: camera   B: keep attempt   Y: discard   START: quit"),
-    "keyboard": ("arrows / WASD: move x/y   R/F: up/down   SPACE: open/close gripper",
-                 "SHIFT hold: precision   C: camera   ENTER: keep attempt   BACKSPACE: discard   ESC: quit"),
-}
-
-
 def camera_yaw(model: mujoco.MjModel, data: mujoco.MjData, camera: str) -> float:
     """[rad] The rotation from the seed's fixed stick mapping (stick up = world +y) to the camera's:
     stick up then moves the hand away from the viewer, along the camera's view on the table."""
@@ -185,10 +178,9 @@ class Viewer:
     button sets `closed`. Raises FetchError when no window can be opened (no display, no OpenGL).
     """
 
-    def __init__(self, env: Any, device_name: str, size: tuple[int, int] = (640, 480),
+    def __init__(self, env: Any, legend: tuple[str, ...] = (), size: tuple[int, int] = (640, 480),
                  camera: str = "front") -> None:
-        if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) \
-                and os.environ.get("SDL_VIDEODRIVER") not in ("dummy", "offscreen"):
+        if not has_display() and os.environ.get("SDL_VIDEODRIVER") not in ("dummy", "offscreen"):
             raise FetchError("no display for the viewer window; use --render none (headless), or run under "
                              "a desktop session or `xvfb-run`")
         check_gl()
@@ -203,26 +195,26 @@ class Viewer:
         self._camera.fixedcamid = model.camera(camera).id
         self._option = mujoco.MjvOption()
         self.size = size
-        os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
-        # SDL's own X11 framebuffer: by default SDL draws the window through OpenGL, which with software GL
-        # (llvmpipe under Xvfb) took 6-13 ms a flip on the control thread, against about 0.5 ms this way.
-        os.environ.setdefault("SDL_FRAMEBUFFER_ACCELERATION", "0")
-        import pygame
-
-        self.pygame = pygame
         # The GL context first: with MUJOCO_GL=egl, a context made after SDL opened its X11 window
         # fails (EGL_BAD_ACCESS).
         self._frames = FrameThread(model, size)
-        try:
-            pygame.display.init()
-            pygame.font.init()
-            self.window = pygame.display.set_mode(size)
-        except pygame.error as e:
-            self._frames.close()
-            raise FetchError(f"cannot open the viewer window: {e}; use --render none") from e
+        # SDL's own X11 framebuffer: by default SDL draws the window through OpenGL, which with software GL
+        # (llvmpipe under Xvfb) took 6-13 ms a flip on the control thread, against about 0.5 ms this way.
+        # SDL reads the hint when the window is made: it is set for that only.
+        with environ(PYGAME_HIDE_SUPPORT_PROMPT="1", SDL_FRAMEBUFFER_ACCELERATION="0"):
+            import pygame
+
+            self.pygame = pygame
+            try:
+                pygame.display.init()
+                pygame.font.init()
+                self.window = pygame.display.set_mode(size)
+            except pygame.error as e:
+                self._frames.close()
+                raise FetchError(f"cannot open the viewer window: {e}; use --render none") from e
         pygame.display.set_caption(f"gym-fetch-v2: {self.env.spec.id if self.env.spec else 'collect'}")
         self.font = pygame.font.Font(None, 22)
-        self.legend = LEGEND.get(device_name, ())
+        self.legend = legend
         self.key_events: list[int] = []
         self.closed = False
         self.frames = 0
