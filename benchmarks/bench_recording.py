@@ -21,10 +21,11 @@ import numpy as np
 import fetch
 from fetch.dataset import open_dataset
 from fetch.dataset.episode import EpisodeBuffer
+from fetch.dataset.formats import open_writer, recorded_layout
 from fetch.dataset.replay import check_demo, make_replay_env
 from fetch.dataset.writer import DatasetWriter
-from fetch.teleop.devices import ExpertDevice
-from fetch.teleop.session import CollectConfig, Session, make_env, observation_layout, open_writer
+from fetch.teleop.expert import ExpertDevice
+from fetch.teleop.session import CollectConfig, Session, make_env
 
 TARGET_OVERHEAD = 0.05
 TARGET_COMMIT_MS = 50.0
@@ -48,8 +49,7 @@ def step_loop(env: gym.Env, actions: np.ndarray, record: EpisodeBuffer | None) -
 
 def overhead(env_id: str, steps: int, repeats: int) -> tuple[float, float, float]:
     env = gym.make(env_id, max_episode_steps=steps + 1)
-    config = CollectConfig(env_id=env_id, device="expert", render="none")
-    buffer = EpisodeBuffer(observation_layout(env, config), capacity=steps)
+    buffer = EpisodeBuffer(recorded_layout(env), capacity=steps)
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 4)).astype(np.float32)
     plain, recorded = [], []
     for _ in range(repeats):  # interleaved, so drift in the machine's load hits both
@@ -66,9 +66,9 @@ def commit_times(env_id: str, existing: int) -> tuple[float, float, float]:
     with tempfile.TemporaryDirectory() as out:
         config = CollectConfig(env_id=env_id, out=out, max_steps=600, device="expert", render="none",
                                keep_failures=True)
-        writer = open_writer(config, env, lambda name, demo: None)
+        writer = open_writer("hdf5", out, env, settings=config.settings(), device="bench")
         assert isinstance(writer, DatasetWriter)
-        buffer = EpisodeBuffer(observation_layout(env, config), capacity=600)
+        buffer = EpisodeBuffer(recorded_layout(env), capacity=600)
         obs, _ = env.reset(seed=0)
         buffer.begin(obs, env.unwrapped.get_state())  # type: ignore[attr-defined]
         for _ in range(500):

@@ -100,8 +100,8 @@ def test_the_writer_falls_at_most_max_queued_demos_behind(tmp_path: pathlib.Path
     """A slow disk: commits wait for the writer instead of piling up demos that a crash would lose."""
     import time
 
+    from fetch.dataset.background import MAX_QUEUED, BackgroundWriter
     from fetch.dataset.episode import Demo
-    from fetch.dataset.writer import MAX_QUEUED, BackgroundWriter
 
     class SlowDisk(BackgroundWriter):
         def _save(self, name: str, demo: Demo) -> None:

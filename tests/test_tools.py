@@ -12,9 +12,9 @@ import pytest
 
 from fetch.cli import main
 from fetch.dataset import open_dataset, validate
+from fetch.dataset.background import BackgroundWriter
 from fetch.dataset.frames import StateRenderer
 from fetch.dataset.video import read_video
-from fetch.dataset.writer import BackgroundWriter
 from robomimic_rules import assert_robomimic_loadable
 
 ENV = "Reach-v2"  # the quickest expert: a few short demos take a second

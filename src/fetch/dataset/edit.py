@@ -19,8 +19,9 @@ import numpy as np
 
 from fetch._progress import progress
 from fetch.dataset import schema
+from fetch.dataset.durable import editing, replacing, rewritten
 from fetch.dataset.reader import Dataset, open_dataset, require_valid, resolve
-from fetch.dataset.writer import editing, package_versions, replacing, rewritten
+from fetch.dataset.writer import package_versions
 from fetch.errors import DatasetError, FetchError
 
 SAME = ("env_id", "env_kwargs", "layout", "model_hash")

@@ -14,9 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from fetch.dataset.background import BackgroundWriter
+from fetch.dataset.durable import atomic_write
 from fetch.dataset.episode import Demo
 from fetch.dataset.replay import ReplayCheck, resimulate
-from fetch.dataset.writer import BackgroundWriter, atomic_write
 from fetch.errors import DatasetError
 
 _NUMBER = re.compile(r"_ep(\d+)_")

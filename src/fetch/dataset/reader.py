@@ -13,6 +13,7 @@ import h5py
 import numpy as np
 
 from fetch.dataset import schema
+from fetch.dataset.demo_file import read_demo_group
 from fetch.errors import DatasetError
 
 READ_ERRORS: tuple[type[Exception], ...] = (OSError, KeyError, RuntimeError, ValueError, TypeError)
@@ -133,7 +134,6 @@ class Dataset:
 
     def arrays(self, name: str) -> dict[str, np.ndarray]:
         """Every array of one demo, loaded, keyed by its path in the demo group."""
-        from fetch.dataset.writer import read_demo_group
 
         group = self.demo(name)
         try:

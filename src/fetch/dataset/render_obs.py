@@ -22,8 +22,8 @@ import numpy as np
 
 from fetch._progress import progress
 from fetch.dataset import schema
+from fetch.dataset.durable import Rewrites, editing
 from fetch.dataset.reader import open_dataset, require_valid, resolve
-from fetch.dataset.writer import Rewrites, editing
 from fetch.errors import DatasetError, FetchError
 
 

@@ -1,0 +1,160 @@
+"""The saving thread every dataset format shares: `commit` returns at once, demos are written in
+order behind it, at most `MAX_QUEUED` wait, a failure stops saving and is raised on the next call."""
+
+from __future__ import annotations
+
+import errno
+import os
+import pathlib
+import queue
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from fetch.dataset import schema
+from fetch.dataset.durable import lock_directory, unlock_directory
+from fetch.dataset.episode import Demo
+from fetch.errors import DatasetError
+
+MAX_QUEUED = 8
+"""Demos that may wait to be saved; `commit` then waits for the writer. Unbounded, a slow disk let
+the writer fall 12 demos behind, and a SIGKILL then lost them all (each is an attempt of a person)."""
+
+
+class BackgroundWriter:
+    """Saves demos from a thread, so committing never stalls the control loop; one per directory.
+
+    `commit` numbers a demo, queues it and returns at once; `_save` (a subclass's) writes it and
+    `on_saved(name, demo)` is called from the writing thread once it is durable. A failure stops
+    further saving; the next `commit` and `close` raise it. Attempts are counted across sessions.
+    """
+
+    def __init__(self, out_dir: str | os.PathLike[str], on_saved: Callable[[str, Demo], None] | None) -> None:
+        self.out_dir = pathlib.Path(out_dir)
+        self.on_saved = on_saved
+        try:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise DatasetError(f"cannot create the output directory {self.out_dir}: {e.strerror}") from e
+        self._lock_file = self._lock()
+        self.attempts = 0
+        self.saved = 0
+        self.recovered = 0
+        self._next_index = 0
+        self.error: BaseException | None = None
+        self._pending: list[str] = []
+        self._queue: queue.Queue[tuple[str, Demo] | None] = queue.Queue(MAX_QUEUED)
+        self.most_behind = 0
+        """the most demos that were ever waiting to be saved."""
+        self._thread = threading.Thread(target=self._run, name="fetch-dataset-writer", daemon=True)
+
+    def _start(self) -> None:
+        self._thread.start()
+
+    def _lock(self) -> Any:
+        return lock_directory(self.out_dir, "choose another --out")
+
+    def _unlock(self) -> None:
+        if self._lock_file is not None:  # once: the descriptor's number may be reused after close
+            unlock_directory(self._lock_file)
+            self._lock_file = None
+
+    def reserve_attempt(self) -> int:
+        """The number of the attempt about to start."""
+        number = self.attempts
+        self.attempts += 1
+        return number
+
+    def demo_name(self, index: int) -> str:
+        return schema.demo_name(index)
+
+    def commit(self, demo: Demo) -> str:
+        """Queue a finished demo for saving and return its name; raises the writer's earlier failure."""
+        if self.error is not None:
+            raise DatasetError(f"saving to {self.out_dir} failed earlier: {self.error}") from self.error
+        name = self.demo_name(self._next_index)
+        self._next_index += 1
+        self._queue.put((name, demo))  # waits while MAX_QUEUED demos are already waiting
+        self.most_behind = max(self.most_behind, self._queue.qsize())
+        return name
+
+    @property
+    def behind(self) -> int:
+        """Demos committed but not yet saved."""
+        return self._queue.qsize()
+
+    def _run(self) -> None:
+        for name in self._pending:  # saved by an earlier session that stopped before completing them
+            if self.error is None:
+                self._complete_safely(name, None)
+        while True:
+            item = self._queue.get()
+            try:
+                if item is None:
+                    return
+                if self.error is None:
+                    name, demo = item
+                    try:
+                        self._save(name, demo)
+                    except OSError as e:
+                        self.error = DatasetError(self._describe(name, e))
+                        continue
+                    except Exception as e:  # a bug must not end the thread silently
+                        self.error = e
+                        continue
+                    self.saved += 1
+                    if self.on_saved is not None:
+                        self.on_saved(name, demo)
+                    self._complete_safely(name, demo)
+            finally:
+                self._queue.task_done()
+
+    def _complete_safely(self, name: str, demo: Demo | None) -> None:
+        try:
+            self._complete(name, demo)
+        except OSError as e:
+            self.error = DatasetError(self._describe(name, e))
+        except Exception as e:
+            self.error = e
+
+    def _complete(self, name: str, demo: Demo | None) -> None:
+        """Called after demo `name` is saved (None: it was saved by an earlier session), to add what
+        is made after the fact (a subclass's images)."""
+
+    def _save(self, name: str, demo: Demo) -> None:
+        raise NotImplementedError
+
+    def _describe(self, name: str, e: OSError) -> str:
+        reason = {errno.EFBIG: "the file-size limit was reached", errno.ENOSPC: "the disk is full",
+                  errno.EACCES: "permission denied", errno.EROFS: "the file system is read-only"}.get(
+            e.errno or 0, str(e))
+        return f"could not save {name} in {self.out_dir}: {reason}; the demos saved before are intact"
+
+    def _finish(self) -> None:
+        """Called by `close` after the last save (e.g. to record the attempt count)."""
+
+    def flush(self) -> None:
+        """Wait until every committed demo is on disk (or the writer failed)."""
+        self._queue.join()
+
+    def close(self) -> None:
+        """Finish saving, release the directory; re-raise a failure."""
+        self._queue.put(None)
+        if self._thread.is_alive():
+            self._thread.join()
+        try:
+            if self.error is None:
+                try:
+                    self._finish()
+                except OSError as e:
+                    self.error = DatasetError(self._describe("the index", e))
+        finally:
+            self._unlock()
+        if self.error is not None:
+            raise self.error
+
+    def __enter__(self) -> BackgroundWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,50 @@
+"""One demo as an HDF5 group, and as a file of its own (`episodes/demo_<i>.hdf5`)."""
+
+from __future__ import annotations
+
+import io
+import pathlib
+from collections.abc import Callable
+from typing import Any
+
+import h5py
+import numpy as np
+
+from fetch.dataset.durable import atomic_write
+from fetch.dataset.episode import Demo
+
+
+def hdf5_bytes(build: Callable[[h5py.File], None]) -> bytes:
+    """An HDF5 file built in memory. Files reach the disk only through `atomic_write`: HDF5 itself
+    does not survive a failed write (it crashed the process on a full disk in our tests)."""
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as f:
+        build(f)
+    return buffer.getvalue()
+
+
+def write_demo_file(path: pathlib.Path, name: str, demo: Demo) -> None:
+    """Write one demo as the group `/<name>` of a new HDF5 file, atomically."""
+    atomic_write(path, hdf5_bytes(lambda f: write_demo_group(f.create_group(name), demo)))
+
+
+def write_demo_group(group: h5py.Group, demo: Demo) -> None:
+    for key, value in demo.attrs.items():
+        group.attrs[key] = value
+    for key, array in demo.arrays.items():
+        # Images compress well and are large; the rest is small and read often, so stays raw.
+        options: dict[str, Any] = {"compression": "gzip", "compression_opts": 4} if array.dtype == np.uint8 \
+            and array.ndim == 4 else {}
+        group.create_dataset(key, data=array, **options)
+
+
+def read_demo_group(group: h5py.Group) -> Demo:
+    """A saved demo, loaded (the inverse of `write_demo_group`)."""
+    arrays: dict[str, np.ndarray] = {}
+
+    def visit(path: str, node: Any) -> None:
+        if isinstance(node, h5py.Dataset):
+            arrays[path] = node[()]
+
+    group.visititems(visit)
+    return Demo(arrays, dict(group.attrs))

@@ -1,0 +1,130 @@
+"""Files that survive a kill at any instant: written under a temporary name, flushed, renamed, the
+directory flushed; several files replaced together; a directory held by one process at a time."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import pathlib
+import shutil
+from collections.abc import Iterator
+from typing import Any
+
+import h5py
+
+from fetch.dataset import schema
+from fetch.errors import DatasetError
+
+
+def fsync_path(path: pathlib.Path) -> None:
+    """Flush a file's (or directory's) data to the disk, so a rename after it is durable."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def replacing(path: pathlib.Path) -> Iterator[pathlib.Path]:
+    """Yields a temporary path to write `path`'s new content to; when the block finishes, it is
+    flushed to disk and renamed over `path` (and the directory flushed). If the block or the
+    rename fails, the old `path` is untouched and the temporary file removed."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        yield tmp
+        fsync_path(tmp)
+        os.replace(tmp, path)
+        fsync_path(path.parent)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def atomic_write(path: pathlib.Path, content: bytes) -> None:
+    """Replace `path` with `content` all at once (see `replacing`)."""
+    with replacing(path) as tmp:
+        tmp.write_bytes(content)
+
+
+def lock_directory(directory: pathlib.Path, alternative: str) -> Any:
+    """Hold `directory` itself exclusively (an flock on the directory, until `unlock_directory`);
+    DatasetError if another collector or tool holds it. `alternative` completes the message
+    ("choose another --out"). A lock on a file inside could be bypassed by deleting the file."""
+    fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as e:
+        os.close(fd)
+        raise DatasetError(f"{directory} is in use by another collector or tool (it holds the directory's lock); "
+                           f"wait for it to finish or {alternative}") from e
+    return fd
+
+
+def unlock_directory(handle: Any) -> None:
+    with contextlib.suppress(OSError):
+        fcntl.flock(handle, fcntl.LOCK_UN)
+    with contextlib.suppress(OSError):
+        os.close(handle)
+
+
+@contextlib.contextmanager
+def editing(index: pathlib.Path) -> Iterator[None]:
+    """Hold a collector's directory (it has `episodes/` beside `index`) while a tool reads and edits
+    it, so no collector appends meanwhile; a single-file dataset needs no lock."""
+    if not (index.parent / schema.EPISODES_DIR).is_dir():
+        yield
+        return
+    handle = lock_directory(index.parent, "run it when the collector has finished")
+    try:
+        yield
+    finally:
+        unlock_directory(handle)
+
+
+class Rewrites:
+    """Edits of HDF5 files that replace the originals together, when the block ends, or not at all.
+
+    `edit(path)` yields a copy opened for writing; when the `with Rewrites()` block finishes, every
+    copy is flushed and renamed over its original, in the order first edited (so edit an index
+    last); if the block raises, the copies are deleted and no original has changed.
+    """
+
+    def __init__(self) -> None:
+        self._copies: dict[pathlib.Path, pathlib.Path] = {}
+
+    @contextlib.contextmanager
+    def edit(self, path: pathlib.Path) -> Iterator[h5py.File]:
+        tmp = self._copies.get(path)
+        if tmp is None:
+            tmp = path.with_name(f".{path.name}.tmp")
+            self._copies[path] = tmp
+            shutil.copyfile(path, tmp)
+        with h5py.File(tmp, "r+") as f:
+            yield f
+
+    def __enter__(self) -> Rewrites:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
+        try:
+            if kind is None:
+                for tmp in self._copies.values():
+                    fsync_path(tmp)
+                for path, tmp in self._copies.items():
+                    os.replace(tmp, path)
+                for directory in {path.parent for path in self._copies}:
+                    fsync_path(directory)
+        finally:
+            for tmp in self._copies.values():
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+
+
+@contextlib.contextmanager
+def rewritten(path: pathlib.Path) -> Iterator[h5py.File]:
+    """Edit one HDF5 file all at once (see `Rewrites`)."""
+    with Rewrites() as rewrites, rewrites.edit(path) as f:
+        yield f
