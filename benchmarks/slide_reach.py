@@ -28,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 
 import fetch  # noqa: F401  (registers the ids)
+from fetch.experts.base import Stage
 from fetch.experts.slide import Slide
 
 SIZES = (0.3, 0.45, 0.6, 0.75, 0.9, 1.0)
@@ -50,7 +51,7 @@ class Forced(Slide):
         self.forced_size = 0.0
 
     def plan(self, rest: np.ndarray, goal: np.ndarray, grip: np.ndarray) -> None:
-        if self.stage == "line_up":
+        if self.stage is Stage.LINE_UP:
             return
         if not self.queue:
             self.finish(grip, goal)
@@ -59,7 +60,7 @@ class Forced(Slide):
         self.line = np.array([lx, ly]) / np.hypot(lx, ly)
         self.target = goal[:2].copy()
         self.motion, self.offset = self.contact(self.line)
-        self.advance("line_up")
+        self.advance(Stage.LINE_UP)
 
     def size(self, distance: float, x: float) -> float:
         # A negative size scales the expert's own choice (its strike table) by minus that.
@@ -97,7 +98,7 @@ def search(seed: int) -> tuple[str, int]:
             run = pickle.loads(start)
             expert = Forced(layout, [(first, size), ((1.0, 0.0), 0.0)])
             current, steps = obs, 0
-            while steps < HORIZON and not (expert.stage == "watch" and expert.pushes == 1):
+            while steps < HORIZON and not (expert.stage is Stage.WATCH and expert.pushes == 1):
                 current = run.step(expert(current))[0]
                 steps += 1
             branch_env, branch_expert = pickle.dumps(run), copy.deepcopy(expert)

@@ -13,6 +13,8 @@ from fetch.experts.pick import Grasp, PickAndPlace
 from fetch.experts.slide import Slide
 from fetch.tasks import bin as bin_task
 from fetch.tasks import box as box_task
+from fetch.tasks import classic, drawer
+from fetch.tasks.base import Task
 
 __all__ = ["Expert", "make_expert"]
 
@@ -21,21 +23,22 @@ _HANDLE = (0.0, 0.0, box_task.LID_THICK / 2 + 0.022)
 _BIN_CARRY = bin_task.TABLE_TOP + bin_task.WALL_HEIGHT + 2 * bin_task.BLOCK + 0.03
 _BOX_CARRY = box_task.SEATED_Z + _HANDLE[2] + 0.04
 
-EXPERTS: dict[str, Callable[[Mapping[str, slice]], Expert]] = {
-    "reach": Reach,
-    "push": Push,
-    "slide": Slide,
-    "pick_place": lambda layout: PickAndPlace(layout, Grasp("object")),
-    "bin_pick": lambda layout: PickAndPlace(layout, Grasp("block", opening=0.03, carry_z=_BIN_CARRY)),
-    "bin_place": lambda layout: PickAndPlace(layout, Grasp("block", opening=0.03, carry_z=_BIN_CARRY,
+EXPERTS: dict[type[Task], Callable[[Mapping[str, slice]], Expert]] = {
+    classic.Reach: Reach,
+    classic.Push: Push,
+    classic.Slide: Slide,
+    classic.PickPlace: lambda layout: PickAndPlace(layout, Grasp("object")),
+    bin_task.BinPick: lambda layout: PickAndPlace(layout, Grasp("block", opening=0.03, carry_z=_BIN_CARRY)),
+    bin_task.BinPlace: lambda layout: PickAndPlace(layout, Grasp("block", opening=0.03, carry_z=_BIN_CARRY,
                                                            release=True)),
-    "box_open": lambda layout: PickAndPlace(layout, Grasp("lid", _HANDLE, opening=0.02, carry_z=_BOX_CARRY,
+    box_task.BoxOpen: lambda layout: PickAndPlace(layout, Grasp("lid", _HANDLE, opening=0.02, carry_z=_BOX_CARRY,
                                                           release=True)),
-    "box_close": lambda layout: PickAndPlace(layout, Grasp("lid", _HANDLE, opening=0.02, carry_z=_BOX_CARRY,
+    box_task.BoxClose: lambda layout: PickAndPlace(layout, Grasp("lid", _HANDLE, opening=0.02, carry_z=_BOX_CARRY,
                                                            release=True, release_tolerance=0.006)),
-    "drawer_open": Drawer,
-    "drawer_close": Drawer,
+    drawer.DrawerOpen: Drawer,
+    drawer.DrawerClose: Drawer,
 }
+"""The expert of each task, by the task's class (one entry per registered task; a test checks that)."""
 
 
 def make_expert(env: gym.Env | str) -> Expert:
@@ -47,4 +50,4 @@ def make_expert(env: gym.Env | str) -> Expert:
     unwrapped = env.unwrapped
     if not isinstance(unwrapped, FetchEnv):
         raise FetchError(f"make_expert needs a gym-fetch env or id, got {type(unwrapped).__name__}")
-    return EXPERTS[unwrapped.task.name](unwrapped.observation_layout)
+    return EXPERTS[type(unwrapped.task)](unwrapped.observation_layout)

@@ -3,11 +3,33 @@
 from __future__ import annotations
 
 import abc
+import enum
 from collections.abc import Mapping
 
 import numpy as np
 
 from fetch.robot import ACTION_STEP
+
+
+class Stage(enum.Enum):
+    """Where an expert is in its script (each expert uses some of these, in its own order)."""
+
+    START = enum.auto()
+    ABOVE = enum.auto()      # over the object, fingers open
+    DESCEND = enum.auto()
+    CLOSE = enum.auto()
+    LIFT = enum.auto()
+    CARRY = enum.auto()
+    LOWER = enum.auto()
+    RELEASE = enum.auto()
+    RETREAT = enum.auto()
+    OVER = enum.auto()       # behind the object, above it (push)
+    DOWN = enum.auto()
+    PUSH = enum.auto()
+    PULL = enum.auto()       # the drawer's handle
+    LINE_UP = enum.auto()    # slide: behind the puck on its line to the goal
+    WATCH = enum.auto()      # slide: the puck is moving
+    DONE = enum.auto()
 
 
 class Expert(abc.ABC):
@@ -23,7 +45,7 @@ class Expert(abc.ABC):
 
     def reset(self) -> None:
         """Forget the previous episode (call after every env.reset)."""
-        self.stage = "start"
+        self.stage = Stage.START
         self.timer = 0
 
     def part(self, obs: Mapping[str, np.ndarray], name: str) -> np.ndarray:
@@ -45,7 +67,7 @@ class Expert(abc.ABC):
         state, per_step = vec[layout["gripper_state"]].mean(), vec[layout["gripper_vel"]].mean()
         return float(np.clip(opening - state - per_step, -1.0, 1.0))
 
-    def advance(self, stage: str) -> None:
+    def advance(self, stage: Stage) -> None:
         self.stage, self.timer = stage, 0
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fetch.experts.base import Expert
+from fetch.experts.base import Expert, Stage
 
 
 class Reach(Expert):
@@ -44,19 +44,19 @@ class Push(Expert):
         along = float(rel @ direction) - self.behind
         across = float(abs(rel[0] * direction[1] - rel[1] * direction[0]))
         low, high = obj[2], obj[2] + 0.07
-        if self.stage == "push" and (across > 0.025 or along > -0.03):
-            self.advance("over")  # the object turned away or the hand got past it: line up again
-        if self.stage in ("start", "over"):
-            self.stage = "over"
+        if self.stage is Stage.PUSH and (across > 0.025 or along > -0.03):
+            self.advance(Stage.OVER)  # the object turned away or the hand got past it: line up again
+        if self.stage in (Stage.START, Stage.OVER):
+            self.stage = Stage.OVER
             if np.linalg.norm(grip[:2] - start) < 0.01:
-                self.advance("down")
+                self.advance(Stage.DOWN)
             else:
                 lifted = grip[2] > low + 0.04 or np.linalg.norm(grip[:2] - obj[:2]) > 0.09
                 target = np.array([*start, high]) if lifted else np.array([*grip[:2], high])
                 return np.append(self.move(grip, target), -1.0)
-        if self.stage == "down":
+        if self.stage is Stage.DOWN:
             if abs(grip[2] - low) < 0.01:
-                self.advance("push")
+                self.advance(Stage.PUSH)
             return np.append(self.move(grip, np.array([*start, low])), -1.0)
         if dist < 0.01:
             return np.append(np.zeros(3), -1.0)
@@ -79,15 +79,15 @@ class Drawer(Expert):
         handle = self.part(obs, "handle_pos")
         goal = np.asarray(obs["desired_goal"])
         hook = handle + [self.gap, 0.0, 0.0]
-        if self.stage in ("start", "above"):
-            self.stage = "above"
+        if self.stage in (Stage.START, Stage.ABOVE):
+            self.stage = Stage.ABOVE
             target = hook + [0.0, 0.0, 0.09]
             if np.linalg.norm((hook - grip)[:2]) < 0.006:
-                self.advance("down")
+                self.advance(Stage.DOWN)
             return np.append(self.move(grip, target), -1.0)
-        if self.stage == "down":
+        if self.stage is Stage.DOWN:
             if abs(hook[2] - grip[2]) < 0.008:
-                self.advance("pull")
+                self.advance(Stage.PULL)
             return np.append(self.move(grip, hook), -1.0)
         # Move the hook to where it is with the drawer at its goal, a bit past it.
         target = goal + [self.gap, 0.0, 0.0]

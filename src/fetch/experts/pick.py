@@ -7,7 +7,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fetch.experts.base import Expert
+from fetch.experts.base import Expert, Stage
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,49 +47,49 @@ class PickAndPlace(Expert):
         fingers = self.part(obs, "gripper_state").mean()
         held = np.linalg.norm(obj + offset - grip) < 0.03 and fingers < g.opening * 0.95
 
-        if self.stage == "start":
-            self.advance("above")
-        if self.stage in ("lift", "carry", "lower") and not held:
-            self.advance("above")  # dropped it: start over
-        if self.stage == "above":
+        if self.stage is Stage.START:
+            self.advance(Stage.ABOVE)
+        if self.stage in (Stage.LIFT, Stage.CARRY, Stage.LOWER) and not held:
+            self.advance(Stage.ABOVE)  # dropped it: start over
+        if self.stage is Stage.ABOVE:
             target = grasp_at + [0.0, 0.0, g.hover]
             target[2] = max(target[2], grip[2] if np.linalg.norm((grasp_at - grip)[:2]) > 0.02 else 0.0)
             xyz = self.move(grip, target)
             if np.linalg.norm((grasp_at - grip)[:2]) < 0.008:
-                self.advance("descend")
+                self.advance(Stage.DESCEND)
             return np.append(xyz, self.finger_servo(obs, self.layout, g.opening))
-        if self.stage == "descend":
+        if self.stage is Stage.DESCEND:
             xyz = self.move(grip, grasp_at)
             if np.linalg.norm((grasp_at - grip)[:2]) > 0.02:
-                self.advance("above")
+                self.advance(Stage.ABOVE)
             elif abs(grasp_at[2] - grip[2]) < 0.006:
-                self.advance("close")
+                self.advance(Stage.CLOSE)
             return np.append(xyz, self.finger_servo(obs, self.layout, g.opening))
-        if self.stage == "close":
+        if self.stage is Stage.CLOSE:
             if self.timer >= 3:
-                self.advance("lift")
+                self.advance(Stage.LIFT)
                 # Lift clear of rims and off the table before moving sideways.
                 self.lift_z = max(g.carry_z, grip[2] + 0.03)
             return np.append(self.move(grip, grasp_at), -1.0)
         place = goal + offset
-        if self.stage == "lift":
+        if self.stage is Stage.LIFT:
             target = np.array([grip[0], grip[1], self.lift_z])
             if grip[2] >= self.lift_z - 0.01:
-                self.advance("carry")
+                self.advance(Stage.CARRY)
             return np.append(self.move(grip, target), -1.0)
-        if self.stage == "carry":
+        if self.stage is Stage.CARRY:
             target = place.copy()
             target[2] = max(target[2], g.carry_z)
             if np.linalg.norm((place - grip)[:2]) < 0.01:
-                self.advance("lower")
+                self.advance(Stage.LOWER)
             return np.append(self.move(grip, target), -1.0)
-        if self.stage == "lower":
+        if self.stage is Stage.LOWER:
             if g.release and np.linalg.norm(obj - goal) < g.release_tolerance:
-                self.advance("release")
+                self.advance(Stage.RELEASE)
             return np.append(self.move(grip, place), -1.0)
-        if self.stage == "release":
+        if self.stage is Stage.RELEASE:
             if self.timer >= 3:
-                self.advance("retreat")
+                self.advance(Stage.RETREAT)
             return np.append(np.zeros(3), 1.0)
         # retreat: straight up, fingers open, then hold still
         target = grip.copy()
