@@ -1,0 +1,228 @@
+"""`gym-fetch view`: a static web page of a dataset (opens from disk, no server, no network).
+
+The page lists every demo with a looping video rendered from its saved states, its length, seed,
+device, session and success/valid flags, draws the selected demo's actions and observations over
+time, and histograms of lengths and of success per device and per session. It is written beside
+`--out` and renamed into place when complete.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import dataclasses
+import datetime
+import os
+import pathlib
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+
+from fetch.dataset.reader import READ_ERRORS, Dataset, open_dataset, validate
+from fetch.errors import DatasetError, FetchError
+
+SIGNIFICANT = 5
+"""Digits kept of each plotted value (the page's data files stay small)."""
+
+
+_UNREADABLE: tuple[type[Exception], ...] = (DatasetError, *READ_ERRORS)
+
+
+@dataclasses.dataclass(frozen=True)
+class ViewReport:
+    path: pathlib.Path
+    demos: int
+    videos: int
+    invalid: int
+
+
+@dataclasses.dataclass(frozen=True)
+class _Row:
+    """One demo as the page's table shows it."""
+
+    name: str
+    length: int
+    seed: int | str
+    device: str
+    session: str
+    success: bool
+    valid: bool
+    problem: str
+    readable: bool
+
+
+def demo_problems(problems: list[str], names: list[str]) -> dict[str, list[str]]:
+    """The problems `validate` found, by the demo each starts with (`demo_3: ...`, `demo_3 is in ...`)."""
+    found: dict[str, list[str]] = collections.defaultdict(list)
+    known = set(names)
+    for problem in problems:
+        head = problem.split(":", 1)[0].split(" ", 1)[0]
+        if head in known:
+            found[head].append(problem)
+    return found
+
+
+def session_of(attrs: dict[str, Any]) -> str:
+    """What `success by session` groups by: the dataset a merged demo came from, else the UTC day it was
+    recorded (a resumed collection on another day is another session)."""
+    source = attrs.get("source")
+    if isinstance(source, str) and ":" in source:
+        return pathlib.Path(source.rsplit(":", 1)[0]).name
+    started = attrs.get("started")
+    if isinstance(started, int | float) and np.isfinite(started):
+        return datetime.datetime.fromtimestamp(float(started), datetime.timezone.utc).strftime("%Y-%m-%d")
+    return "?"
+
+
+def _row(ds: Dataset, name: str, problems: list[str]) -> _Row:
+    try:
+        attrs = ds.attrs(name)
+    except DatasetError as e:
+        return _Row(name, 0, "?", "?", "?", False, False, str(e), False)
+    length = attrs.get("num_samples", 0)
+    readable = not any("cannot be read" in p or "missing" in p for p in problems)
+    return _Row(name=name, length=int(length) if isinstance(length, int | np.integer) else 0,
+                seed=int(attrs["seed"]) if isinstance(attrs.get("seed"), int | np.integer) else "?",
+                device=str(attrs.get("device", "?")), session=session_of(attrs), success=bool(attrs.get("success")),
+                valid=not problems, problem="; ".join(problems)[:500], readable=readable)
+
+
+def _rounded(values: np.ndarray) -> list[Any]:
+    """Columns of `values` ((T,) or (T, D)) as lists, to SIGNIFICANT digits, non-finite values as null."""
+    array = np.asarray(values, dtype=np.float64)
+    array = array[:, None] if array.ndim == 1 else array
+    columns = []
+    for column in array.T:
+        columns.append([float(f"{v:.{SIGNIFICANT}g}") if np.isfinite(v) else None for v in column])
+    return columns
+
+
+def series(arrays: dict[str, np.ndarray], obs_layout: dict[str, slice]) -> dict[str, Any]:
+    """What the page plots for one demo: actions, reward and success per step, and each observation
+    part over the T+1 observations (before every step and after the last)."""
+    observation = np.concatenate([arrays["obs/observation"], arrays["next_obs/observation"][-1:]])
+    return {"actions": _rounded(arrays["actions"]), "reward": _rounded(arrays["rewards"])[0],
+            "success": _rounded(arrays["is_success"])[0],
+            "obs": {part: _rounded(observation[:, where]) for part, where in obs_layout.items()}}
+
+
+def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, camera: str = "front",
+               size: int = 128, workers: int | None = None, force: bool = False) -> ViewReport:
+    """Write the page (`index.html`), one mp4 per demo (`videos/`) and the demos' series (`data/`) to `out`."""
+    import gymnasium as gym
+
+    import fetch  # noqa: F401  (registers the ids)
+    from fetch._progress import progress
+    from fetch.dataset.dirs import replacing_dir
+    from fetch.dataset.frames import check_env_camera
+    from fetch.dataset.render_obs import default_workers
+    from fetch.dataset.video import check_video_path
+    from fetch.dataset.view_page import data_script, page
+
+    if size <= 0 or size % 2:
+        raise FetchError(f"--size must be an even number of pixels (H.264 video), got {size}")
+    with open_dataset(ds_path) as ds:
+        if ds.env_id not in fetch.ENV_IDS:
+            raise DatasetError(f"{ds.path}: its env {ds.env_id!r} is not one of gym-fetch-v2's; "
+                               f"`gym-fetch info {ds.path}` lists what is wrong")
+        check_env_camera(ds.env_id, ds.env_kwargs, camera)
+        env: Any = gym.make(ds.env_id, **ds.env_kwargs).unwrapped
+        obs_layout, fps = dict(env.observation_layout), round(1.0 / env.dt)
+        env.close()
+        names = list(ds.demo_names)
+        problems = demo_problems(validate(ds), names)
+        rows = [_row(ds, name, problems.get(name, [])) for name in names]
+        with replacing_dir(pathlib.Path(out), force) as root:
+            (root / "videos").mkdir()
+            (root / "data").mkdir()
+            check_video_path(root / "videos" / "check.mp4", size, size)
+            videos = 0
+            entries = []
+            frames = _frames(ds, [r.name for r in rows if r.readable], camera, size, workers or default_workers())
+            for row in progress(rows, len(rows), "view"):
+                entry = {**dataclasses.asdict(row), "video": None, "data": None}
+                if row.readable:
+                    images = next(frames)
+                    if images is not None:
+                        _video(root / "videos" / f"{row.name}.mp4", images, fps, size)
+                        entry["video"] = f"videos/{row.name}.mp4"
+                        videos += 1
+                    try:
+                        data = series(ds.arrays(row.name), obs_layout)
+                    except (DatasetError, KeyError, ValueError):
+                        data = None
+                    if data is not None:
+                        (root / "data" / f"{row.name}.js").write_text(data_script(row.name, data))
+                        entry["data"] = f"data/{row.name}.js"
+                entries.append(entry)
+            summary = {"env_id": ds.env_id, "path": str(ds.path), "camera": camera, "fps": fps, "demos": entries}
+            (root / "index.html").write_text(page(summary, f"{ds.env_id}: {ds.path}"))
+    return ViewReport(pathlib.Path(out), len(rows), videos, sum(not r.valid for r in rows))
+
+
+def _frames(ds: Dataset, names: list[str], camera: str, size: int, workers: int) -> Iterator[np.ndarray | None]:
+    """Each demo's images of every saved state (None where the states cannot be read or rendered)."""
+    import concurrent.futures
+
+    from fetch.dataset.frames import RenderPool
+
+    def states(name: str) -> np.ndarray | None:
+        try:
+            array = np.asarray(ds.demo(name)["states"][()], dtype=np.float64)
+        except _UNREADABLE:
+            return None
+        ok = array.ndim == 2 and array.shape[1] == ds.layout.state_size and np.all(np.isfinite(array))
+        return array if ok and len(array) else None
+
+    workers = max(1, min(workers, len(names)))
+    with RenderPool(ds.env_id, ds.env_kwargs, size, workers) as pool:
+        pending: collections.deque[concurrent.futures.Future[dict[str, np.ndarray]] | None] = collections.deque()
+        queue = iter(names)
+
+        def submit_next() -> None:
+            name = next(queue, None)
+            if name is not None:
+                array = states(name)
+                pending.append(None if array is None else pool.submit(array, (camera,)))
+
+        for _ in range(2 * workers):
+            submit_next()
+        while pending:
+            future = pending.popleft()
+            submit_next()
+            yield None if future is None else future.result()[camera]
+
+
+def _video(path: pathlib.Path, images: np.ndarray, fps: int, size: int) -> None:
+    from fetch.dataset.video import write_video
+
+    write_video(path, iter(images), fps, size, size)
+
+
+def describe(report: ViewReport) -> str:
+    index = report.path / "index.html"
+    return (f"wrote a page of {report.demos} demo(s) ({report.videos} videos, {report.invalid} invalid) to {index}; "
+            f"open it in a browser (file://{index.resolve()})")
+
+
+def add_view_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """The `view` subcommand."""
+    p = sub.add_parser("view", help="write a static web page of a dataset: a looping video per demo, plots of "
+                                    "actions and observations, histograms of length and success")
+    p.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
+    p.add_argument("--out", required=True, metavar="DIR", help="the page's directory (index.html, videos/, data/)")
+    p.add_argument("--camera", default="front", help="the videos' camera: front (default), side, behind or wrist")
+    p.add_argument("--size", type=int, default=128, help="video width and height [px] (default 128)")
+    p.add_argument("--workers", type=int, default=None, help="render processes (default: one per core)")
+    p.add_argument("--force", action="store_true", help="replace --out if it is not empty")
+    p.set_defaults(run=run_view)
+
+
+def run_view(args: argparse.Namespace) -> int:
+    if args.workers is not None and args.workers < 1:
+        raise FetchError(f"--workers must be at least 1, got {args.workers}")
+    report = build_view(args.file, args.out, camera=args.camera, size=args.size, workers=args.workers,
+                        force=args.force)
+    print(describe(report))
+    return 0
