@@ -1,0 +1,346 @@
+"""FetchVectorEnv: N worlds of one task in one process, stepped together on C threads (Gymnasium 1.x).
+
+Each world steps exactly as `gym.make(id)` does (same seeds and actions: the same observations,
+rewards, infos and `get_state()`, bit for bit): the action rule is `Robot.apply_batch`, the physics
+runs in `worlds.py`, observations come from `Observer.batch`. Resets go through a single `FetchEnv`
+(the template), one world at a time: a reset draws from that world's own `np.random.Generator`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, NamedTuple, cast
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium.core import RenderFrame
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from fetch import observation as ob
+from fetch.env import FetchEnv
+from fetch.errors import FetchError, UnknownNameError
+from fetch.robot import ACTION_STEP
+from fetch.tasks.base import mocap_index
+from fetch.vector.worlds import StateLayout, Worlds, make_worlds
+
+Obs = dict[str, np.ndarray]
+RENDER_MODES = ("rgb_array", "depth_array")
+
+
+class _Rows(NamedTuple):
+    """A world's qpos row where a task's `facts` reads `data.qpos` (the drawers' opening)."""
+
+    qpos: np.ndarray
+
+
+class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
+    """`num_envs` worlds of one Fetch task, stepped in parallel on `nthread` C threads (0: every
+    CPU; mujoco >= 4.0, else one after another). Gymnasium's VectorEnv API: batched Dict
+    observations, rewards, terminated/truncated and infos with `_key` masks, as `SyncVectorEnv`.
+
+    `max_episode_steps` truncates as `gym.make`'s TimeLimit; `autoreset_mode` is one of Gymnasium's
+    `AutoresetMode`s; `render()` renders the worlds in `render_worlds` (default: all); the other
+    keyword arguments are `FetchEnv`'s (`render_mode` "human" excepted).
+    """
+
+    metadata: dict[str, Any] = {"render_modes": list(RENDER_MODES), "render_fps": FetchEnv.metadata["render_fps"],
+                                "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int, task: str = "pick_place", max_episode_steps: int | None = None,
+                 reward_type: str = "sparse", render_mode: str | None = None, width: int = 480,
+                 height: int = 480, camera_name: str = "front", hide_goal: bool = False,
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, nthread: int = 0,
+                 render_worlds: Sequence[int] | None = None) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise FetchError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
+        self.num_envs = int(num_envs)
+        if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or int(max_episode_steps) < 1):
+            raise FetchError(f"max_episode_steps must be >= 1 or None, got {max_episode_steps!r}")
+        if isinstance(nthread, bool) or not isinstance(nthread, (int, np.integer)) or nthread < 0:
+            raise FetchError(f"nthread must be a whole number >= 0 (0: every CPU), got {nthread!r}")
+        modes = tuple(m.value for m in AutoresetMode)
+        if not isinstance(autoreset_mode, AutoresetMode) and autoreset_mode not in modes:
+            raise UnknownNameError("autoreset_mode", str(autoreset_mode), modes)
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise UnknownNameError("render_mode", render_mode, RENDER_MODES)
+        self.render_worlds = self._check_worlds(render_worlds)
+
+        # The template: validates the env's own arguments, resets one world at a time and renders.
+        self._env = FetchEnv(task=task, reward_type=reward_type, render_mode=render_mode, width=width,
+                             height=height, camera_name=camera_name, hide_goal=hide_goal)
+        env = self._env
+        self.task, self.robot, self.model = env.task, env.robot, env.model
+        self.reward_type = reward_type
+        self.render_mode = render_mode
+        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
+        self.single_observation_space = env.observation_space
+        self.observation_space = batch_space(env.observation_space, self.num_envs)
+        self.single_action_space = env.action_space
+        self.action_space = batch_space(env.action_space, self.num_envs)
+        self.observation_layout = dict(env.observation_layout)
+
+        self._worlds: Worlds = make_worlds(self.model, self.num_envs, self.robot.hand, int(nthread))
+        self._layout = StateLayout(self.model)
+        self._worlds.state[:] = env.get_state()  # every world as a new env is before its first reset
+        self._observer = ob.Observer(self.model, self.task.parts)
+        self._achieved = self.observation_layout[self.task.achieved]
+        self._goal_mocap = mocap_index(self.model, "goal")
+        self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
+        self._seeds: list[int | None] = [None] * self.num_envs
+        self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
+        self._autoreset = np.zeros(self.num_envs, dtype=np.bool_)
+        self._last_obs = self._empty_obs(self.num_envs)  # a masked reset returns the others' as they were
+
+    # -- Gymnasium VectorEnv API --------------------------------------------------------------
+
+    @property
+    def nthread(self) -> int:
+        """C threads the worlds step on (1 where mujoco has no `mujoco.batch`)."""
+        return self._worlds.nthread
+
+    @property
+    def parallel(self) -> bool:
+        """Whether the worlds step on C threads (mujoco >= 4.0) or one after another."""
+        return self._worlds.parallel
+
+    @property  # type: ignore[misc]
+    def np_random(self) -> tuple[np.random.Generator, ...]:  # type: ignore[override]
+        """Each world's generator, as `SyncVectorEnv.np_random` (one is made for a world that has none)."""
+        return tuple(self._rng(i) for i in range(self.num_envs))
+
+    @property
+    def np_random_seed(self) -> tuple[int | None, ...]:  # type: ignore[override]
+        """Each world's seed, as `SyncVectorEnv.np_random_seed` (-1 is never set here)."""
+        return tuple(self._seeds)
+
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Obs, dict[str, Any]]:
+        """Reset every world, or those in `options["reset_mask"]`; an int seed gives world i seed + i,
+        as `SyncVectorEnv` does."""
+        n = self.num_envs
+        if seed is None:
+            seeds: list[int | None] = [None] * n
+        elif isinstance(seed, (list, tuple)):
+            seeds = list(seed)
+            if len(seeds) != n:
+                raise ValueError(f"seed must be None, an int or a list of num_envs={n} seeds; got {len(seeds)} seeds")
+        else:
+            seeds = [int(seed) + i for i in range(n)]
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        if mask is None:
+            mask = np.ones(n, dtype=np.bool_)
+        elif not isinstance(mask, np.ndarray) or mask.shape != (n,) or mask.dtype != np.bool_:
+            raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({n},), got {mask!r}")
+        elif not mask.any():
+            raise ValueError("options['reset_mask'] resets no world; set at least one True")
+        ids = np.flatnonzero(mask)
+        self._autoreset[ids] = False
+        obs = {key: value.copy() for key, value in self._last_obs.items()}
+        infos: dict[str, Any] = {}
+        for i in ids.tolist():
+            world_obs, info = self._reset_world(i, seeds[i])
+            for key, value in world_obs.items():
+                obs[key][i] = value
+            infos = self._add_info(infos, info, i)
+        self._last_obs = {key: value.copy() for key, value in obs.items()}
+        return obs, infos
+
+    def step(self, actions: np.ndarray) -> tuple[Obs, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every world with its row of `actions` (num_envs, 4): batched results, autoreset as
+        `autoreset_mode` says."""
+        a = self._check_actions(actions)
+        n = self.num_envs
+        if self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
+            ended = np.flatnonzero(self._autoreset).tolist()
+            raise FetchError(f"worlds {ended} ended their episodes; with autoreset_mode=disabled reset them "
+                             "(reset(options={'reset_mask': ...})) before stepping again")
+        resetting = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else np.zeros(n, bool)
+        stepping = np.flatnonzero(~resetting)
+        obs = self._empty_obs(n)
+        rewards = np.zeros(n, dtype=np.float64)
+        terminated = np.zeros(n, dtype=np.bool_)
+        truncated = np.zeros(n, dtype=np.bool_)
+        infos: dict[str, Any] = {}
+        if stepping.size:
+            step_obs, step_rewards, step_infos = self._step_worlds(stepping, a[stepping])
+            for key, value in step_obs.items():
+                obs[key][stepping] = value
+            rewards[stepping] = step_rewards
+            self._elapsed[stepping] += 1
+            if self.max_episode_steps is not None:
+                truncated[stepping] = self._elapsed[stepping] >= self.max_episode_steps
+            infos = self._add_infos(infos, step_infos, stepping)
+        for i in np.flatnonzero(resetting).tolist():
+            world_obs, info = self._reset_world(i, None)
+            for key, value in world_obs.items():
+                obs[key][i] = value
+            infos = self._add_info(infos, info, i)
+        if self.autoreset_mode == AutoresetMode.SAME_STEP:
+            for i in np.flatnonzero(terminated | truncated).tolist():
+                final_info = {key: infos[key][i] for key in step_infos}
+                final_obs = {key: obs[key][i].copy() for key in obs}
+                infos = self._add_info(infos, {"final_obs": final_obs, "final_info": final_info}, i)
+                world_obs, info = self._reset_world(i, None)
+                for key, value in world_obs.items():
+                    obs[key][i] = value
+                infos = self._add_info(infos, info, i)
+        self._autoreset = terminated | truncated
+        self._last_obs = {key: value.copy() for key, value in obs.items()}
+        return obs, rewards, terminated, truncated, infos
+
+    def render(self) -> tuple[RenderFrame, ...] | None:
+        """Frames of the worlds in `render_worlds` (all by default), in that order."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode= to make_vec")
+            return None
+        return tuple(cast(RenderFrame, self.render_world(i)) for i in self.render_worlds)
+
+    def render_world(self, world: int) -> np.ndarray | None:
+        """One world's frame (`render_mode` rgb_array or depth_array)."""
+        (world,) = self._check_worlds([world])
+        self._env.set_state(self._worlds.state[world])
+        return self._env.render()
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self._env.close()
+        self._worlds.close()
+
+    # -- per world -------------------------------------------------------------------------
+
+    def get_state(self, world: int) -> np.ndarray:
+        """World `world`'s full integration state, as `FetchEnv.get_state` (a copy)."""
+        (world,) = self._check_worlds([world])
+        return self._worlds.state[world].copy()
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any = None) -> np.ndarray:
+        """`FetchEnv.compute_reward`: vectorised over any leading axes (HER)."""
+        return self._env.compute_reward(achieved_goal, desired_goal, info)
+
+    # -- inside ----------------------------------------------------------------------------
+
+    def _rng(self, world: int) -> np.random.Generator:
+        rng = self._rngs[world]
+        if rng is None:
+            rng, seed = seeding.np_random()
+            self._rngs[world], self._seeds[world] = rng, seed
+        return rng
+
+    def _reset_world(self, world: int, seed: int | None) -> tuple[Obs, dict[str, Any]]:
+        """Reset one world through the template, with that world's generator (or a new one from `seed`)."""
+        env = self._env
+        if seed is None:
+            env.np_random = self._rng(world)
+            obs, info = env.reset()
+        else:
+            obs, info = env.reset(seed=seed)
+            self._rngs[world], self._seeds[world] = env.np_random, env.np_random_seed
+        env.get_state(self._worlds.state[world])
+        self._elapsed[world] = 0
+        return obs, info
+
+    def _check_actions(self, actions: Any) -> np.ndarray:
+        a = np.asarray(actions)
+        if a.shape != (self.num_envs, 4):
+            raise ValueError(f"actions must have shape ({self.num_envs}, 4), one row of 4 per world; got {a.shape}")
+        if np.iscomplexobj(a) or not np.issubdtype(a.dtype, np.number):
+            raise ValueError(f"actions must be real numbers, got dtype {a.dtype}")
+        if a.dtype != np.float32:
+            a = a.astype(np.float64)
+        finite = np.isfinite(a).all(axis=1)
+        if not finite.all():
+            bad = np.flatnonzero(~finite).tolist()
+            raise ValueError(f"actions of worlds {bad} are not finite ({a[bad[0]].tolist()}); a NaN or inf would "
+                             "make the simulation unstable (valid: finite values, clipped to [-1, 1])")
+        # Clipped and scaled in the actions' own precision, as FetchEnv.step does.
+        return np.clip(a, -1.0, 1.0)
+
+    def _step_worlds(self, ids: np.ndarray, a: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
+        """One control step of the worlds `ids` (sorted), as `FetchEnv.step` does for one."""
+        worlds, robot, layout = self._worlds, self.robot, self._layout
+        every = ids.size == self.num_envs
+        call_ids = None if every else ids
+        # Every world: views of the live rows; some: a copy of theirs, written back.
+        rows = worlds.state if every else worlds.state[ids]
+        qpos, ctrl = layout.view(rows, "qpos"), layout.view(rows, "ctrl")
+        mocap_pos, mocap_quat = layout.view(rows, "mocap_pos"), layout.view(rows, "mocap_quat")
+        move = (a[:, :3] * ACTION_STEP).astype(np.float64)
+        robot.apply_batch(mocap_pos, mocap_quat, ctrl, qpos, move, a[:, 3].astype(np.float64))
+        if not every:
+            worlds.state[ids] = rows
+        worlds.step(call_ids)
+        if robot.config.block_gripper:
+            # The fingers held shut are reset after the physics, before the state is observed.
+            rows = worlds.state if every else worlds.state[ids]
+            layout.view(rows, "qpos")[:, robot.finger_qpos] = 0.0
+            if not every:
+                worlds.state[ids] = rows
+        else:
+            # The next action moves from the hand's pose where gymnasium-robotics v4 reads it: at
+            # the start of the last substep (see Robot.advance).
+            reference = worlds.hand_pos[ids], worlds.hand_quat[ids]
+        worlds.sense(call_ids)
+        if robot.config.block_gripper:
+            reference = worlds.hand_pos[ids], worlds.hand_quat[ids]  # after the reset: the present pose
+        rows = worlds.state if every else worlds.state[ids]
+        layout.view(rows, "mocap_pos")[:, robot.mocap] = reference[0]
+        layout.view(rows, "mocap_quat")[:, robot.mocap] = reference[1]
+        if not every:
+            worlds.state[ids] = rows
+        goals = layout.view(rows, "mocap_pos")[:, self._goal_mocap].copy()
+        return self._observe(worlds.sensordata[ids], goals, layout.view(rows, "qpos"))
+
+    def _observe(self, sensordata: np.ndarray, goals: np.ndarray,
+                 qpos: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
+        """Observations, rewards and infos of worlds from their sensors, goals and joints, as
+        `FetchEnv._observe` computes them for one. The distance is `math.dist` and success the task's
+        scalar rule per world: numpy's norm differs from `math.dist` in the last bit (18 % of random
+        pairs), which `info["distance"]` and a dense reward would show."""
+        vectors = self._observer.batch(sensordata)
+        achieved = vectors[:, self._achieved].copy()
+        task = self.task
+        distance, success, facts = [], [], []
+        for k, (a, g) in enumerate(zip(achieved.tolist(), goals.tolist(), strict=True)):
+            d = math.dist(a, g)
+            distance.append(d)
+            success.append(1.0 if task.success(a, g, d) else 0.0)
+            facts.append(task.facts(cast(mujoco.MjData, _Rows(qpos[k])), vectors[k]))
+        info = {"is_success": np.array(success), "distance": np.array(distance)}
+        for key in facts[0]:
+            info[key] = np.array([f[key] for f in facts], dtype=np.float64)
+        if self.reward_type == "sparse":
+            rewards = info["is_success"] - 1.0
+        else:
+            rewards = -info["distance"]
+        return {"observation": vectors, "achieved_goal": achieved, "desired_goal": goals}, rewards, info
+
+    def _add_infos(self, infos: dict[str, Any], values: dict[str, np.ndarray], ids: np.ndarray) -> dict[str, Any]:
+        """`_add_info` for many worlds at once: each key an (num_envs,) float array with its `_key` mask."""
+        for key, value in values.items():
+            if key not in infos:
+                infos[key] = np.zeros(self.num_envs, dtype=value.dtype)
+                infos[f"_{key}"] = np.zeros(self.num_envs, dtype=np.bool_)
+            infos[key][ids] = value
+            infos[f"_{key}"][ids] = True
+        return infos
+
+    def _empty_obs(self, n: int) -> Obs:
+        return {key: np.zeros((n, *space.shape), dtype=np.float64)  # type: ignore[misc]
+                for key, space in self.single_observation_space.spaces.items()}  # type: ignore[attr-defined]
+
+    def _check_worlds(self, worlds: Sequence[int] | None) -> list[int]:
+        if worlds is None:
+            return list(range(self.num_envs))
+        out = []
+        for w in worlds:
+            if isinstance(w, bool) or not isinstance(w, (int, np.integer)) or not 0 <= w < self.num_envs:
+                raise FetchError(f"world {w!r} is not one of 0..{self.num_envs - 1}")
+            out.append(int(w))
+        return out
+
