@@ -15,10 +15,12 @@ import pytest
 CAMERAS = ("front", "side", "behind", "wrist")
 
 
-def test_headless_backend_was_chosen() -> None:
+def test_headless_backend_is_chosen_for_renderers_not_set_at_import() -> None:
     if os.environ.get("DISPLAY") or sys.platform != "linux":
         pytest.skip("only meaningful on a headless Linux machine")
-    assert os.environ.get("MUJOCO_GL") in ("egl", "osmesa")
+    from fetch._gl import backend
+
+    assert backend() in ("egl", "osmesa")
 
 
 @pytest.mark.parametrize("camera", CAMERAS)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from fetch._gl import choose_gl_backend
+from fetch._gl import guard_mujoco_import
 
-choose_gl_backend()  # before anything imports mujoco
+guard_mujoco_import()  # before anything imports mujoco; it leaves the environment as it found it
 
 import gymnasium as _gym  # noqa: E402
 

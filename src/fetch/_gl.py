@@ -1,4 +1,10 @@
-"""Pick an offscreen OpenGL backend for MuJoCo on a headless Linux machine, and say what is missing."""
+"""Offscreen OpenGL for MuJoCo, chosen when the first renderer is made, not at import.
+
+`import fetch` changes nothing in the process environment. A renderer reads `MUJOCO_GL` when it
+is made, as MuJoCo does: egl, osmesa or glfw when set; unset, the display's GL when there is a
+display, and on a headless Linux machine EGL, else OSMesa. (MuJoCo's own `mujoco.egl` sets
+`PYOPENGL_PLATFORM` when the EGL backend is first imported; that happens then, not at import.)
+"""
 
 from __future__ import annotations
 
@@ -6,14 +12,19 @@ import ctypes
 import ctypes.util
 import os
 import sys
+from typing import Any
 
+from fetch._environ import environ
 from fetch.errors import FetchError
 
 _OSMESA_NAMES = ("libOSMesa.so", *(f"libOSMesa.so.{i}" for i in range(9, -1, -1)))
 """The file names PyOpenGL tries, in its order (OpenGL/platform/ctypesloader.py)."""
 
 _problem: str | None = None
-"""Why MuJoCo cannot render in this process (set at `import fetch`), or None."""
+"""Why MuJoCo cannot render in this process (found at `import fetch`), or None."""
+
+_OSMESA_MISSING = ("MUJOCO_GL=osmesa{why} needs the OSMesa library (libOSMesa.so), which is not installed: "
+                   "apt-get install libosmesa6, or use MUJOCO_GL=egl (libEGL, from libegl1)")
 
 
 def has_display() -> bool:
@@ -32,38 +43,69 @@ def osmesa_loads() -> bool:
     return False
 
 
-def choose_gl_backend() -> str | None:
-    """Set MUJOCO_GL to egl (else osmesa) when it is unset and there is no display.
-
-    MuJoCo reads MUJOCO_GL once, when `mujoco` is first imported, so this must run before
-    that; if mujoco is already imported, nothing is changed. Returns the value set, if any.
-
-    With MUJOCO_GL=osmesa and no OSMesa library, `import mujoco` itself dies inside PyOpenGL
-    (`'NoneType' object has no attribute 'glGetError'`), so nothing of the package could be used, not
-    even what never renders. Then mujoco is imported here with its GL backend turned off for that
-    import only, and rendering raises `check_gl()`'s error, which names the package to install.
-    """
+def guard_mujoco_import() -> None:
+    """With MUJOCO_GL=osmesa and no OSMesa library, `import mujoco` itself dies inside PyOpenGL
+    (`'NoneType' object has no attribute 'glGetError'`), so nothing of the package could be used,
+    not even what never renders. Then mujoco is imported with its GL backend off, the variable put
+    back right after, and rendering raises `check_gl()`'s error, which names the package to install."""
     global _problem
     if sys.platform != "linux" or "mujoco" in sys.modules:
-        return None
-    chosen = None
-    if not os.environ.get("MUJOCO_GL") and not has_display():
-        chosen = "egl" if ctypes.util.find_library("EGL") else "osmesa"
-        os.environ["MUJOCO_GL"] = chosen
-    requested = os.environ.get("MUJOCO_GL", "")
-    if requested.strip().lower() == "osmesa" and not osmesa_loads():
-        why = " (chosen by `import fetch`: no display and no EGL library)" if chosen else ""
-        _problem = (f"MUJOCO_GL=osmesa{why} needs the OSMesa library (libOSMesa.so), which is not installed: "
-                    "apt-get install libosmesa6, or use MUJOCO_GL=egl (libEGL, from libegl1)")
-        os.environ["MUJOCO_GL"] = "disable"
-        try:
+        return
+    if os.environ.get("MUJOCO_GL", "").strip().lower() == "osmesa" and not osmesa_loads():
+        _problem = _OSMESA_MISSING.format(why="")
+        with environ(overwrite=True, MUJOCO_GL="disable"):
             import mujoco  # noqa: F401  (with no GL backend, so that the import succeeds)
-        finally:
-            os.environ["MUJOCO_GL"] = requested
-    return chosen
 
 
 def check_gl() -> None:
     """Raise FetchError naming what to install when MuJoCo cannot render in this process."""
     if _problem is not None:
         raise FetchError(_problem)
+
+
+def backend() -> str:
+    """The offscreen backend a renderer made now uses: egl, osmesa, or mujoco (MuJoCo's own choice)."""
+    requested = os.environ.get("MUJOCO_GL", "").strip().lower()
+    if sys.platform != "linux" or requested not in ("", "egl", "osmesa"):
+        return "mujoco"
+    if requested:
+        return requested
+    if has_display():
+        return "mujoco"
+    return "egl" if ctypes.util.find_library("EGL") else "osmesa"
+
+
+def context_class() -> Any:
+    """The GL context class for a renderer made now (see the module docstring)."""
+    check_gl()
+    chosen = backend()
+    if chosen == "osmesa" and not osmesa_loads():
+        why = "" if os.environ.get("MUJOCO_GL") else " (no display and no EGL library)"
+        raise FetchError(_OSMESA_MISSING.format(why=why))
+    try:
+        if chosen == "egl":
+            from mujoco.egl import GLContext
+        elif chosen == "osmesa":
+            from mujoco.osmesa import GLContext  # type: ignore[no-redef]
+        else:
+            from mujoco.gl_context import GLContext  # type: ignore[no-redef]
+    except Exception as e:  # the GL backends' own error types vary
+        raise FetchError(f"cannot load MuJoCo's {chosen} OpenGL backend: {e}. Set MUJOCO_GL=egl (libEGL, from "
+                         "libegl1) or osmesa (apt-get install libosmesa6)") from e
+    return GLContext
+
+
+def make_renderer(model: Any, height: int, width: int) -> Any:
+    """A `mujoco.Renderer` on `context_class()`'s context. MuJoCo's Renderer makes its context from
+    its module's `gl_context.GLContext`, fixed when mujoco was imported; that one name is pointed at
+    the chosen class while the Renderer is made, and put back."""
+    import mujoco
+
+    cls = context_class()
+    module = sys.modules[mujoco.Renderer.__module__].gl_context  # type: ignore[attr-defined]
+    saved = module.GLContext
+    module.GLContext = cls
+    try:
+        return mujoco.Renderer(model, height=height, width=width)
+    finally:
+        module.GLContext = saved

@@ -9,7 +9,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from fetch._gl import check_gl, has_display
+from fetch._gl import backend, has_display, make_renderer
 from fetch.errors import FetchError, UnknownNameError
 
 GOAL_GROUP = 2
@@ -40,14 +40,15 @@ class OffscreenRenderer:
         # The offscreen buffer must hold the image; this model is the env's own copy.
         model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
         model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
-        check_gl()
         try:
-            self._renderer = mujoco.Renderer(model, height=height, width=width)
+            self._renderer = make_renderer(model, height=height, width=width)
+        except FetchError:
+            raise
         except Exception as exc:  # the GL backend's own error types vary
             raise FetchError(
-                f"offscreen rendering failed with MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}: "
-                f"{exc}. On a headless machine import fetch before mujoco, or set MUJOCO_GL=egl "
-                "(or osmesa, after apt-get install libosmesa6)") from exc
+                f"offscreen rendering failed with the {backend()} OpenGL backend "
+                f"(MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}): {exc}. Set MUJOCO_GL=egl "
+                "(libEGL, from libegl1) or osmesa (apt-get install libosmesa6)") from exc
         self._options = {hide: _scene_option(hide) for hide in (False, True)}
         self._depth = False
         # Reflections and the skybox cost a third of a software-rendered frame (llvmpipe).

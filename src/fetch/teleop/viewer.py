@@ -21,7 +21,7 @@ import mujoco.gl_context
 import numpy as np
 
 from fetch._environ import environ
-from fetch._gl import check_gl, has_display
+from fetch._gl import check_gl, context_class, has_display
 from fetch.errors import FetchError
 from fetch.rendering import camera_names
 from fetch.teleop.session import HudState
@@ -64,6 +64,7 @@ class FrameThread:
         model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
         self._model = model
         self._size = size
+        self._context = context_class()
         self._rect = mujoco.MjrRect(0, 0, width, height)
         self.scene, self._posted, self._drawing = (self._new_scene() for _ in range(3))
         self._back, self._ready, self._front = (np.zeros((height, width, 3), np.uint8) for _ in range(3))
@@ -124,7 +125,7 @@ class FrameThread:
         try:
             _lower_priority(RENDER_NICE)
             # Made, used and freed on this thread: a GL context is current on one thread at a time.
-            gl = mujoco.gl_context.GLContext(*self._size)
+            gl = self._context(*self._size)
             try:
                 gl.make_current()  # nothing else is current on this thread (as_current is mujoco >= 3.4)
                 context = mujoco.MjrContext(self._model, mujoco.mjtFontScale.mjFONTSCALE_100)
