@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import json
 import math
+import os
 import threading
 import time
 from collections.abc import Iterator
@@ -234,6 +235,18 @@ def test_no_pad_is_an_error_naming_the_other_devices(no_pad: None) -> None:
     for device in ("keyboard", "expert", "scripted"):
         assert f"--device {device}" in str(e.value)
     assert "gym-fetch gamepad" not in str(e.value)  # the live view helps with a pad, not without one
+
+
+def test_opening_a_pad_leaves_the_process_environment_as_it_was(pad: vpad.VirtualPad) -> None:
+    """SDL's hints (background pad events, no prompt) are set only while SDL starts."""
+    before = dict(os.environ)
+    device = GamepadDevice()
+    try:
+        assert dict(os.environ) == before
+        device.poll({})
+    finally:
+        device.close()
+    assert dict(os.environ) == before
 
 
 def test_stick_and_triggers_drive_the_action(pad: vpad.VirtualPad) -> None:

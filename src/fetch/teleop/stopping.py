@@ -9,6 +9,8 @@ import threading
 from collections.abc import Iterator
 from types import FrameType
 
+from fetch._environ import environ
+
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -81,12 +83,11 @@ def stop_on_signals() -> Iterator[None]:
     outermost = _STATE.depth == 0
     if outermost:
         _STATE.requested, _STATE.handled = None, False
-    hint = os.environ.get("SDL_NO_SIGNAL_HANDLERS")
-    os.environ["SDL_NO_SIGNAL_HANDLERS"] = "1"  # read when pygame starts SDL
     old = {s: signal.signal(s, _stop) for s in STOP_SIGNALS}
     _STATE.depth += 1
     try:
-        yield
+        with environ(overwrite=True, SDL_NO_SIGNAL_HANDLERS="1"):  # read when pygame starts SDL
+            yield
     finally:
         _STATE.depth -= 1
         if _STATE.requested is None:
@@ -94,10 +95,6 @@ def stop_on_signals() -> Iterator[None]:
             # arriving while it prints the summary or exits would otherwise end it with a traceback.
             for s, handler in old.items():
                 signal.signal(s, handler)
-        if hint is None:
-            os.environ.pop("SDL_NO_SIGNAL_HANDLERS", None)
-        else:
-            os.environ["SDL_NO_SIGNAL_HANDLERS"] = hint
 
 
 @contextlib.contextmanager
