@@ -331,3 +331,17 @@ def test_euler_angles_match_the_classic_convention() -> None:
         mat = np.zeros(9)
         mujoco.mju_quat2Mat(mat, quat)
         np.testing.assert_allclose(quat2euler(quat.tolist()), rotations.mat2euler(mat.reshape(3, 3)), atol=1e-9)
+
+
+def test_stepping_before_reset_is_gymnasium_s_reset_needed() -> None:
+    """Not TimeLimit's `TypeError: 'NoneType' + 'int'`: a step needs an episode (seed, goal) first."""
+    from gymnasium.error import ResetNeeded
+
+    for env in (gym.make("Push-v2"), FetchEnv(task="push")):
+        with pytest.raises(ResetNeeded, match="reset"):
+            env.step(np.zeros(4))
+        env.reset(seed=0)
+        env.step(np.zeros(4))
+    restored = FetchEnv(task="push")
+    restored.set_state(env.get_state())  # a given state is an episode to go on with
+    restored.step(np.zeros(4))

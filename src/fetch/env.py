@@ -13,6 +13,7 @@ from typing import Any, SupportsFloat
 import gymnasium as gym
 import mujoco
 import numpy as np
+from gymnasium.error import ResetNeeded
 
 from fetch import observation as ob
 from fetch import rendering
@@ -153,6 +154,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         })
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self._state_buf = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
+        self._started = False  # by reset() or set_state(): step() before either is gymnasium's ResetNeeded
         self.last_action: np.ndarray = np.zeros(4, np.float32)
         """The action of the last step, as clipped and applied (what a recorder stores)."""
         mujoco.mj_setState(self.model, self.data, self._start_state, STATE_SPEC)
@@ -174,6 +176,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         super().reset(seed=seed)
+        self._started = True
         mujoco.mj_setState(self.model, self.data, self._start_state, STATE_SPEC)
         goal = self.task.reset(self.model, self.data, self.np_random, self._start)
         self.data.mocap_pos[self._goal_mocap] = goal
@@ -186,6 +189,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool,
                                                 dict[str, Any]]:
+        if not self._started:
+            raise ResetNeeded("call env.reset() (or set_state) before env.step(); an episode needs a seed and a goal")
         a = np.asarray(action)
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}")
@@ -257,6 +262,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             raise FetchError(f"state has shape {state.shape}; this env's states have shape "
                              f"{self._state_buf.shape}")
         mujoco.mj_setState(self.model, self.data, state, STATE_SPEC)
+        self._started = True
         mujoco.mj_forward(self.model, self.data)
         # mj_forward overwrites the solver's warm start on some mujoco versions (3.3); put the
         # saved one back so the next step is bit-identical to the original run.
