@@ -72,22 +72,24 @@ def test_every_task_is_bit_identical_to_single_envs(env_id: str) -> None:
     sync.close()
 
 
-@pytest.mark.parametrize("path", ["serial", "threaded-sensing"])
+@pytest.mark.parametrize("path", ["serial", "threaded-sensing", "one-world"])
 @pytest.mark.parametrize("env_id", ["PickPlace-v2", "Reach-v2", "Drawer-open-v2"])
 def test_other_paths_are_bit_identical(env_id: str, path: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    # The serial path is what mujoco < 4.0 runs; threaded sensing what machines with >= 4 threads run.
+    # The serial path is what mujoco < 4.0 runs; threaded sensing what machines with >= 4 threads
+    # run; one world steps through FetchEnv itself.
+    n = 1 if path == "one-world" else 3
     if path == "serial":
         monkeypatch.setattr(worlds_module, "has_batch", lambda: False)
-    else:
+    elif path == "threaded-sensing":
         if not has_batch():
             pytest.skip("needs mujoco.batch (mujoco >= 4.0)")
         monkeypatch.setattr(worlds_module, "THREADED_SENSING_FROM", 1)
-    ours, sync = both(env_id, 3, max_episode_steps=6, reward_type="dense")
-    assert ours.unwrapped.parallel == (path != "serial")
+    ours, sync = both(env_id, n, max_episode_steps=6, reward_type="dense")
+    assert ours.unwrapped.parallel == (path != "serial" and has_batch())
     assert_same(ours.reset(seed=3), sync.reset(seed=3), "reset")
     rng = np.random.default_rng(1)
     for t in range(14):
-        step_both(ours, sync, rng.uniform(-1, 1, (3, 4)).astype(np.float32), f"step {t}")
+        step_both(ours, sync, rng.uniform(-1, 1, (n, 4)).astype(np.float32), f"step {t}")
 
 
 @pytest.mark.parametrize("mode", list(AutoresetMode))
@@ -215,3 +217,16 @@ def test_render_chosen_worlds() -> None:
     assert not np.array_equal(frames[0], frames[1])  # two different worlds
     with pytest.raises(FetchError, match="0..2"):
         env.unwrapped.render_world(3)
+
+
+def test_one_world_refuses_bad_actions() -> None:
+    env = fetch.make_vec("Slide-v2", 1)
+    env.reset(seed=0)
+    before = env.unwrapped.get_state(0)
+    with pytest.raises(ValueError, match=r"shape \(1, 4\).*got \(4,\)"):
+        env.step(np.zeros(4, np.float32))
+    with pytest.raises(ValueError, match="not finite"):
+        env.step(np.array([[0.0, np.nan, 0.0, 0.0]]))
+    with pytest.raises(ValueError, match="real numbers"):
+        env.step(np.zeros((1, 4), np.complex64))
+    assert_same(env.unwrapped.get_state(0), before, "world 0")

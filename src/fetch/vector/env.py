@@ -95,7 +95,8 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         self._seeds: list[int | None] = [None] * self.num_envs
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=np.bool_)
-        self._last_obs = self._empty_obs(self.num_envs)  # a masked reset returns the others' as they were
+        # What the last reset or step returned: a masked reset returns the other worlds' as they were.
+        self._last_obs = self._empty_obs(self.num_envs)
 
     # -- Gymnasium VectorEnv API --------------------------------------------------------------
 
@@ -149,41 +150,52 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
             for key, value in world_obs.items():
                 obs[key][i] = value
             infos = self._add_info(infos, info, i)
-        self._last_obs = {key: value.copy() for key, value in obs.items()}
+        self._last_obs = obs
         return obs, infos
 
     def step(self, actions: np.ndarray) -> tuple[Obs, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every world with its row of `actions` (num_envs, 4): batched results, autoreset as
         `autoreset_mode` says."""
-        a = self._check_actions(actions)
         n = self.num_envs
-        if self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
-            ended = np.flatnonzero(self._autoreset).tolist()
-            raise FetchError(f"worlds {ended} ended their episodes; with autoreset_mode=disabled reset them "
-                             "(reset(options={'reset_mask': ...})) before stepping again")
-        resetting = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else np.zeros(n, bool)
-        stepping = np.flatnonzero(~resetting)
-        obs = self._empty_obs(n)
-        rewards = np.zeros(n, dtype=np.float64)
-        terminated = np.zeros(n, dtype=np.bool_)
-        truncated = np.zeros(n, dtype=np.bool_)
-        infos: dict[str, Any] = {}
-        if stepping.size:
-            step_obs, step_rewards, step_infos = self._step_worlds(stepping, a[stepping])
-            for key, value in step_obs.items():
-                obs[key][stepping] = value
-            rewards[stepping] = step_rewards
-            self._elapsed[stepping] += 1
-            if self.max_episode_steps is not None:
-                truncated[stepping] = self._elapsed[stepping] >= self.max_episode_steps
-            infos = self._add_infos(infos, step_infos, stepping)
-        for i in np.flatnonzero(resetting).tolist():
-            world_obs, info = self._reset_world(i, None)
-            for key, value in world_obs.items():
-                obs[key][i] = value
-            infos = self._add_info(infos, info, i)
-        if self.autoreset_mode == AutoresetMode.SAME_STEP:
-            for i in np.flatnonzero(terminated | truncated).tolist():
+        # One world steps through FetchEnv.step, which checks dtype and finiteness and clips itself.
+        a = self._check_shape(actions) if n == 1 else self._check_actions(actions)
+        mode = self.autoreset_mode
+        ended = self._autoreset.any()
+        if ended and mode == AutoresetMode.DISABLED:
+            raise FetchError(f"worlds {np.flatnonzero(self._autoreset).tolist()} ended their episodes; with "
+                             "autoreset_mode=disabled reset them (reset(options={'reset_mask': ...})) first")
+        resetting = np.flatnonzero(self._autoreset) if ended and mode == AutoresetMode.NEXT_STEP else None
+        if resetting is None:  # every world steps: the batched results are the results
+            obs, rewards, step_infos = self._step_worlds(None, a)
+            self._elapsed += 1
+            infos = {}
+            for key, value in step_infos.items():
+                infos[key], infos[f"_{key}"] = value, np.ones(n, dtype=np.bool_)
+        else:
+            stepping = np.flatnonzero(~self._autoreset)
+            obs, rewards = self._empty_obs(n), np.zeros(n, dtype=np.float64)
+            infos = {}
+            if stepping.size:
+                step_obs, step_rewards, step_infos = self._step_worlds(stepping, a[stepping])
+                for key, value in step_obs.items():
+                    obs[key][stepping] = value
+                rewards[stepping] = step_rewards
+                self._elapsed[stepping] += 1
+                infos = self._add_infos(infos, step_infos, stepping)
+            for i in resetting.tolist():
+                world_obs, info = self._reset_world(i, None)
+                for key, value in world_obs.items():
+                    obs[key][i] = value
+                infos = self._add_info(infos, info, i)
+        terminated = np.zeros(n, dtype=np.bool_)  # no task ends an episode early: success is in info
+        if self.max_episode_steps is None:
+            truncated = np.zeros(n, dtype=np.bool_)
+        else:
+            truncated = self._elapsed >= self.max_episode_steps
+            if resetting is not None:
+                truncated[resetting] = False
+        if mode == AutoresetMode.SAME_STEP and truncated.any():
+            for i in np.flatnonzero(truncated).tolist():
                 final_info = {key: infos[key][i] for key in step_infos}
                 final_obs = {key: obs[key][i].copy() for key in obs}
                 infos = self._add_info(infos, {"final_obs": final_obs, "final_info": final_info}, i)
@@ -192,7 +204,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
                     obs[key][i] = value
                 infos = self._add_info(infos, info, i)
         self._autoreset = terminated | truncated
-        self._last_obs = {key: value.copy() for key, value in obs.items()}
+        self._last_obs = obs
         return obs, rewards, terminated, truncated, infos
 
     def render(self) -> tuple[RenderFrame, ...] | None:
@@ -245,56 +257,70 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         self._elapsed[world] = 0
         return obs, info
 
-    def _check_actions(self, actions: Any) -> np.ndarray:
+    def _check_shape(self, actions: Any) -> np.ndarray:
         a = np.asarray(actions)
         if a.shape != (self.num_envs, 4):
             raise ValueError(f"actions must have shape ({self.num_envs}, 4), one row of 4 per world; got {a.shape}")
-        if np.iscomplexobj(a) or not np.issubdtype(a.dtype, np.number):
+        return a
+
+    def _check_actions(self, actions: Any) -> np.ndarray:
+        a = self._check_shape(actions)
+        if a.dtype.kind not in "fiu":  # as FetchEnv.step: no bool, complex or text
             raise ValueError(f"actions must be real numbers, got dtype {a.dtype}")
         if a.dtype != np.float32:
             a = a.astype(np.float64)
-        finite = np.isfinite(a).all(axis=1)
-        if not finite.all():
+        if not np.isfinite(a).all():
+            finite = np.isfinite(a).all(axis=1)
             bad = np.flatnonzero(~finite).tolist()
             raise ValueError(f"actions of worlds {bad} are not finite ({a[bad[0]].tolist()}); a NaN or inf would "
                              "make the simulation unstable (valid: finite values, clipped to [-1, 1])")
         # Clipped and scaled in the actions' own precision, as FetchEnv.step does.
         return np.clip(a, -1.0, 1.0)
 
-    def _step_worlds(self, ids: np.ndarray, a: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
-        """One control step of the worlds `ids` (sorted), as `FetchEnv.step` does for one."""
+    def _step_worlds(self, ids: np.ndarray | None, a: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
+        """One control step of the worlds `ids` (sorted; None: every world), as `FetchEnv.step` does
+        for one."""
+        if self.num_envs == 1:
+            return self._step_alone(a)
         worlds, robot, layout = self._worlds, self.robot, self._layout
-        every = ids.size == self.num_envs
-        call_ids = None if every else ids
+        sel: slice | np.ndarray = slice(None) if ids is None else ids
         # Every world: views of the live rows; some: a copy of theirs, written back.
-        rows = worlds.state if every else worlds.state[ids]
+        rows = worlds.state if ids is None else worlds.state[ids]
         qpos, ctrl = layout.view(rows, "qpos"), layout.view(rows, "ctrl")
         mocap_pos, mocap_quat = layout.view(rows, "mocap_pos"), layout.view(rows, "mocap_quat")
-        move = (a[:, :3] * ACTION_STEP).astype(np.float64)
-        robot.apply_batch(mocap_pos, mocap_quat, ctrl, qpos, move, a[:, 3].astype(np.float64))
-        if not every:
+        robot.apply_batch(mocap_pos, mocap_quat, ctrl, qpos, (a[:, :3] * ACTION_STEP).astype(np.float64),
+                          a[:, 3].astype(np.float64))
+        if ids is not None:
             worlds.state[ids] = rows
-        worlds.step(call_ids)
+        worlds.step(ids)
         if robot.config.block_gripper:
             # The fingers held shut are reset after the physics, before the state is observed.
-            rows = worlds.state if every else worlds.state[ids]
+            rows = worlds.state if ids is None else worlds.state[ids]
             layout.view(rows, "qpos")[:, robot.finger_qpos] = 0.0
-            if not every:
+            if ids is not None:
                 worlds.state[ids] = rows
         else:
             # The next action moves from the hand's pose where gymnasium-robotics v4 reads it: at
             # the start of the last substep (see Robot.advance).
-            reference = worlds.hand_pos[ids], worlds.hand_quat[ids]
-        worlds.sense(call_ids)
+            reference = worlds.hand_pos[sel].copy(), worlds.hand_quat[sel].copy()
+        worlds.sense(ids)
         if robot.config.block_gripper:
-            reference = worlds.hand_pos[ids], worlds.hand_quat[ids]  # after the reset: the present pose
-        rows = worlds.state if every else worlds.state[ids]
+            reference = worlds.hand_pos[sel], worlds.hand_quat[sel]  # after the reset: the present pose
+        rows = worlds.state if ids is None else worlds.state[ids]
         layout.view(rows, "mocap_pos")[:, robot.mocap] = reference[0]
         layout.view(rows, "mocap_quat")[:, robot.mocap] = reference[1]
-        if not every:
+        if ids is not None:
             worlds.state[ids] = rows
         goals = layout.view(rows, "mocap_pos")[:, self._goal_mocap].copy()
-        return self._observe(worlds.sensordata[ids], goals, layout.view(rows, "qpos"))
+        return self._observe(worlds.sensordata[sel], goals, layout.view(rows, "qpos"))
+
+    def _step_alone(self, a: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
+        """One world: nothing to spread over threads, and numpy's per-call cost is larger than
+        FetchEnv's scalar step, so the world steps as the template itself (which holds its state)."""
+        obs, reward, _, _, info = self._env.step(a[0])
+        self._env.get_state(self._worlds.state[0])
+        return ({key: value[None] for key, value in obs.items()}, np.array([reward], dtype=np.float64),
+                {key: np.array([value], dtype=np.float64) for key, value in info.items()})
 
     def _observe(self, sensordata: np.ndarray, goals: np.ndarray,
                  qpos: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
