@@ -162,10 +162,8 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
 
 
 def _frames(ds: Dataset, names: list[str], camera: str, size: int, workers: int) -> Iterator[np.ndarray | None]:
-    """Each demo's images of every saved state (None where the states cannot be read or rendered)."""
-    import concurrent.futures
-
-    from fetch.dataset.frames import RenderPool
+    """Each demo's images of every saved state (None where the states cannot be read or are not finite)."""
+    from fetch.dataset.render_ahead import render_ahead
 
     def states(name: str) -> np.ndarray | None:
         try:
@@ -175,23 +173,9 @@ def _frames(ds: Dataset, names: list[str], camera: str, size: int, workers: int)
         ok = array.ndim == 2 and array.shape[1] == ds.layout.state_size and np.all(np.isfinite(array))
         return array if ok and len(array) else None
 
-    workers = max(1, min(workers, len(names)))
-    with RenderPool(ds.env_id, ds.env_kwargs, size, workers) as pool:
-        pending: collections.deque[concurrent.futures.Future[dict[str, np.ndarray]] | None] = collections.deque()
-        queue = iter(names)
-
-        def submit_next() -> None:
-            name = next(queue, None)
-            if name is not None:
-                array = states(name)
-                pending.append(None if array is None else pool.submit(array, (camera,)))
-
-        for _ in range(2 * workers):
-            submit_next()
-        while pending:
-            future = pending.popleft()
-            submit_next()
-            yield None if future is None else future.result()[camera]
+    jobs = (states(name) for name in names)
+    for images in render_ahead(ds.env_id, ds.env_kwargs, size, min(workers, max(1, len(names))), jobs, (camera,)):
+        yield None if images is None else images[camera]
 
 
 def _video(path: pathlib.Path, images: np.ndarray, fps: int, size: int) -> None:

@@ -83,7 +83,7 @@ window.FetchView = (() => {
 
   // A line plot of several series over steps; labels name the series.
   function linePlot(title, series, labels) {
-    const W = 330, H = 130, L = 44, R = 6, T = 16, B = 18;
+    const W = 280, H = 130, L = 44, R = 6, T = 16, B = 18;
     const root = svg("svg", { width: W, height: H, class: "plot", "data-title": title });
     let lo = Infinity, hi = -Infinity, n = 0;
     for (const s of series) {
@@ -97,12 +97,12 @@ window.FetchView = (() => {
     root.append(svg("rect", { x: L, y: T, width: W - L - R, height: H - T - B, fill: "#fff", stroke: "#ccc" }));
     root.append(text(4, 11, title));
     root.append(text(L - 3, T + 8, fmt(hi), "end"), text(L - 3, H - B, fmt(lo), "end"));
-    root.append(text(L, H - 4, "0"), text(W - R, H - 4, String(n - 1) + " steps", "end"));
+    root.append(text(L, H - 4, "step 0"), text(W - R, H - 4, String(n - 1), "end"));
     series.forEach((s, k) => {
       const points = s.map((v, i) => v === null ? "" : x(i).toFixed(1) + "," + y(v).toFixed(1)).join(" ");
       root.append(svg("polyline", { points, fill: "none", stroke: COLORS[k % COLORS.length], "stroke-width": 1.3 }));
       if (labels && labels[k]) {
-        const t = text(L + 4 + 44 * k, T + 10, labels[k]);
+        const t = text(L + 4 + 36 * k, T + 10, labels[k]);
         t.setAttribute("style", "fill:" + COLORS[k % COLORS.length]);
         root.append(t);
       }
@@ -112,7 +112,7 @@ window.FetchView = (() => {
 
   // Bars with a label under each and a text above it.
   function barChart(title, bars) {
-    const W = Math.max(200, 34 * bars.length + 50), H = 130, L = 10, T = 18, B = 30;
+    const W = Math.max(200, 34 * bars.length + 50), H = 140, L = 10, T = 30, B = 30;
     const root = svg("svg", { width: W, height: H, class: "bars", "data-title": title });
     root.append(text(4, 11, title));
     const top = Math.max(1e-9, ...bars.map((b) => b.value));

@@ -1,0 +1,103 @@
+"""The real consumer: lerobot's own `LeRobotDataset` loads `gym-fetch export --to lerobot`.
+
+Runs only where lerobot is installed (its own virtualenv: torch, torchcodec; see the README's
+"Export to LeRobot"), and is skipped in the main test environment.
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+import pytest
+
+pytest.importorskip("lerobot", reason="lerobot is not installed (it has its own virtualenv, .venv-lerobot)")
+torch = pytest.importorskip("torch")
+
+from lerobot.datasets.lerobot_dataset import LeRobotDataset  # noqa: E402
+
+from fetch.dataset import lerobot, open_dataset  # noqa: E402
+from fetch.dataset.export import export_lerobot  # noqa: E402
+from fetch.dataset.frames import StateRenderer  # noqa: E402
+
+SIZE = 64
+CAMERAS = ["front", "wrist"]
+REPO_ID = "test/fetch_reach"
+
+
+@pytest.fixture(scope="module")
+def demos(reach_demos: pathlib.Path) -> dict[str, object]:
+    with open_dataset(reach_demos) as ds:
+        names = list(ds.demo_names)
+        return {"arrays": [ds.arrays(n) for n in names], "env_id": ds.env_id, "env_kwargs": ds.env_kwargs}
+
+
+def load(root: pathlib.Path, **kwargs: object) -> LeRobotDataset:
+    return LeRobotDataset(REPO_ID, root=root, **kwargs)
+
+
+def psnr(a: np.ndarray, b: np.ndarray) -> float:
+    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
+    return 10 * np.log10(255**2 / max(mse, 1e-12))
+
+
+def check_dataset(dataset: LeRobotDataset, demos: dict[str, object]) -> None:
+    arrays: list[dict[str, np.ndarray]] = demos["arrays"]  # type: ignore[assignment]
+    lengths = [len(a["actions"]) for a in arrays]
+    starts = np.concatenate([[0], np.cumsum(lengths)])
+    assert len(dataset) == dataset.num_frames == sum(lengths)
+    assert dataset.num_episodes == len(arrays) and dataset.fps == 25
+    for e in range(len(arrays)):
+        episode = dataset.meta.episodes[e]
+        assert (episode["dataset_from_index"], episode["dataset_to_index"]) == (starts[e], starts[e + 1])
+    with StateRenderer(str(demos["env_id"]), demos["env_kwargs"], SIZE, SIZE) as renderer:  # type: ignore[arg-type]
+        for e, a in enumerate(arrays):
+            for t in range(lengths[e]):
+                item = dataset[int(starts[e]) + t]
+                assert (item["episode_index"].item(), item["frame_index"].item()) == (e, t)
+                assert item["index"].item() == starts[e] + t
+                assert item["task"] == "move the gripper to the goal"
+                assert np.array_equal(item["observation.state"].numpy(), a["obs/observation"][t].astype(np.float32))
+                assert np.array_equal(item["observation.environment_state"].numpy(),
+                                      a["obs/desired_goal"][t].astype(np.float32))
+                assert np.array_equal(item["action"].numpy(), a["actions"][t])
+                assert item["next.reward"].item() == a["rewards"][t]
+                assert item["next.done"].item() == bool(a["dones"][t])
+                assert item["next.success"].item() == bool(a["is_success"][t])
+                assert item["timestamp"].item() == pytest.approx(t / 25, abs=1e-6)
+                for camera in CAMERAS:
+                    decoded = (item[f"observation.images.{camera}"].permute(1, 2, 0).numpy() * 255).round()
+                    fresh = renderer.frame(a["states"][t], camera)
+                    assert decoded.shape == fresh.shape
+                    assert psnr(decoded, fresh) > 30, (e, t, camera, psnr(decoded, fresh))
+
+
+def test_lerobot_loads_the_export(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
+                                  demos: dict[str, object]) -> None:
+    root = tmp_path / "ds"
+    export_lerobot(reach_demos, REPO_ID, root, cameras=CAMERAS, image_size=SIZE)
+    dataset = load(root)
+    check_dataset(dataset, demos)
+    assert list(dataset.meta.tasks.index) == ["move the gripper to the goal"]
+    assert set(dataset.meta.video_keys) == {f"observation.images.{c}" for c in CAMERAS}
+    assert dataset.meta.stats["action"]["mean"].shape == (4,)
+    assert dataset.meta.stats["observation.images.front"]["mean"].shape == (3, 1, 1)
+
+
+def test_many_files_and_action_chunks(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
+                                      demos: dict[str, object], monkeypatch: pytest.MonkeyPatch) -> None:
+    """Tiny file limits put every episode in files of its own (new chunk/file indices, video
+    timestamps from 0 again); an ACT-style action chunk is padded at each episode's end."""
+    monkeypatch.setattr(lerobot, "DATA_FILE_MB", 1e-6)
+    monkeypatch.setattr(lerobot, "VIDEO_FILE_MB", 1e-6)
+    root = tmp_path / "ds"
+    export_lerobot(reach_demos, REPO_ID, root, cameras=CAMERAS, image_size=SIZE)
+    arrays: list[dict[str, np.ndarray]] = demos["arrays"]  # type: ignore[assignment]
+    assert len(list((root / "data").rglob("*.parquet"))) == len(arrays)
+    assert len(list((root / "videos/observation.images.front").rglob("*.mp4"))) == len(arrays)
+    check_dataset(load(root), demos)
+    chunked = load(root, delta_timestamps={"action": [0.0, 0.04, 0.08]})
+    last = len(arrays[0]["actions"]) - 1
+    item = chunked[last - 1]  # the second-to-last step of episode 0: one step of the chunk is past its end
+    assert item["action_is_pad"].tolist() == [False, False, True]
+    assert np.array_equal(item["action"][:2].numpy(), arrays[0]["actions"][last - 1:last + 1])
