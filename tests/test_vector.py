@@ -230,3 +230,27 @@ def test_one_world_refuses_bad_actions() -> None:
     with pytest.raises(ValueError, match="real numbers"):
         env.step(np.zeros((1, 4), np.complex64))
     assert_same(env.unwrapped.get_state(0), before, "world 0")
+
+
+@pytest.mark.parametrize("n", [1, 3])
+def test_set_state_continues_as_the_single_env(n: int) -> None:
+    # A world restored to a single env's mid-episode state steps on exactly as that env does.
+    single = gym.make("PickPlace-v2")
+    single.reset(seed=9)
+    rng = np.random.default_rng(4)
+    for _ in range(7):
+        single.step(rng.uniform(-1, 1, 4).astype(np.float32))
+    env = fetch.make_vec("PickPlace-v2", n)
+    env.reset(seed=0)
+    world = n - 1
+    env.unwrapped.set_state(world, single.unwrapped.get_state())
+    for t in range(5):
+        actions = rng.uniform(-1, 1, (n, 4)).astype(np.float32)
+        obs, reward, _, _, info = env.step(actions)
+        want_obs, want_reward, _, _, want_info = single.step(actions[world])
+        for key in want_obs:
+            assert_same(obs[key][world], want_obs[key], f"step {t} {key}")
+        assert reward[world] == want_reward and info["distance"][world] == want_info["distance"]
+        assert_same(env.unwrapped.get_state(world), single.unwrapped.get_state(), f"step {t} state")
+    with pytest.raises(FetchError, match="shape"):
+        env.unwrapped.set_state(0, np.zeros(3))

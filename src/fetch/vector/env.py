@@ -117,7 +117,9 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
 
     @property
     def np_random_seed(self) -> tuple[int | None, ...]:  # type: ignore[override]
-        """Each world's seed, as `SyncVectorEnv.np_random_seed` (-1 is never set here)."""
+        """Each world's seed, as `SyncVectorEnv.np_random_seed` (a world with no generator gets one)."""
+        for i in range(self.num_envs):
+            self._rng(i)
         return tuple(self._seeds)
 
     def reset(self, *, seed: int | list[int | None] | None = None,
@@ -150,7 +152,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
             for key, value in world_obs.items():
                 obs[key][i] = value
             infos = self._add_info(infos, info, i)
-        self._last_obs = obs
+        self._last_obs = {key: value.copy() for key, value in obs.items()}  # not the caller's arrays
         return obs, infos
 
     def step(self, actions: np.ndarray) -> tuple[Obs, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
@@ -204,7 +206,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
                     obs[key][i] = value
                 infos = self._add_info(infos, info, i)
         self._autoreset = terminated | truncated
-        self._last_obs = obs
+        self._last_obs = {key: value.copy() for key, value in obs.items()}  # not the caller's arrays
         return obs, rewards, terminated, truncated, infos
 
     def render(self) -> tuple[RenderFrame, ...] | None:
@@ -230,6 +232,19 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         """World `world`'s full integration state, as `FetchEnv.get_state` (a copy)."""
         (world,) = self._check_worlds([world])
         return self._worlds.state[world].copy()
+
+    def set_state(self, world: int, state: np.ndarray) -> None:
+        """Restore world `world` to a state from `get_state` (of this or a single env of the same id),
+        as `FetchEnv.set_state`: its next step is the one that state's env would take. Its episode's
+        step count is kept."""
+        (world,) = self._check_worlds([world])
+        state = np.asarray(state, dtype=np.float64)
+        if state.shape != self._worlds.state.shape[1:]:
+            raise FetchError(f"state has shape {state.shape}; this env's states have shape "
+                             f"{self._worlds.state.shape[1:]}")
+        self._worlds.state[world] = state
+        if self.num_envs == 1:  # the template holds the one world's MjData
+            self._env.set_state(state)
 
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any = None) -> np.ndarray:
         """`FetchEnv.compute_reward`: vectorised over any leading axes (HER)."""
