@@ -159,8 +159,9 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         """Step every world with its row of `actions` (num_envs, 4): batched results, autoreset as
         `autoreset_mode` says."""
         n = self.num_envs
-        # One world steps through FetchEnv.step, which checks dtype and finiteness and clips itself.
-        a = self._check_shape(actions) if n == 1 else self._check_actions(actions)
+        if n == 1:
+            return self._step_one(self._check_shape(actions)[0])
+        a = self._check_actions(actions)
         mode = self.autoreset_mode
         ended = self._autoreset.any()
         if ended and mode == AutoresetMode.DISABLED:
@@ -295,8 +296,6 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
     def _step_worlds(self, ids: np.ndarray | None, a: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
         """One control step of the worlds `ids` (sorted; None: every world), as `FetchEnv.step` does
         for one."""
-        if self.num_envs == 1:
-            return self._step_alone(a)
         worlds, robot, layout = self._worlds, self.robot, self._layout
         sel: slice | np.ndarray = slice(None) if ids is None else ids
         # Every world: views of the live rows; some: a copy of theirs, written back.
@@ -329,13 +328,36 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         goals = layout.view(rows, "mocap_pos")[:, self._goal_mocap].copy()
         return self._observe(worlds.sensordata[sel], goals, layout.view(rows, "qpos"))
 
-    def _step_alone(self, a: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
-        """One world: nothing to spread over threads, and numpy's per-call cost is larger than
-        FetchEnv's scalar step, so the world steps as the template itself (which holds its state)."""
-        obs, reward, _, _, info = self._env.step(a[0])
-        self._env.get_state(self._worlds.state[0])
-        return ({key: value[None] for key, value in obs.items()}, np.array([reward], dtype=np.float64),
-                {key: np.array([value], dtype=np.float64) for key, value in info.items()})
+    def _step_one(self, action: np.ndarray) -> tuple[Obs, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """`step` of one world: nothing to spread over threads, and numpy's cost per call exceeds
+        FetchEnv's scalar step's, so the world steps as the template itself (which holds its state;
+        FetchEnv.step checks the action's dtype and finiteness and clips it), the episode kept in
+        scalars, the autoreset modes as in `step`."""
+        env, mode = self._env, self.autoreset_mode
+        ended = bool(self._autoreset[0])
+        if ended and mode == AutoresetMode.DISABLED:
+            raise FetchError("worlds [0] ended their episodes; with autoreset_mode=disabled reset them "
+                             "(reset(options={'reset_mask': ...})) first")
+        extra: dict[str, Any] = {}
+        if ended and mode == AutoresetMode.NEXT_STEP:
+            obs, info = self._reset_world(0, None)
+            reward, truncated = 0.0, False
+        else:
+            obs, reward, _, _, info = env.step(action)
+            env.get_state(self._worlds.state[0])
+            elapsed = int(self._elapsed[0]) + 1
+            self._elapsed[0] = elapsed
+            truncated = self.max_episode_steps is not None and elapsed >= self.max_episode_steps
+            if truncated and mode == AutoresetMode.SAME_STEP:
+                extra = self._add_info({}, {"final_obs": obs, "final_info": info}, 0)
+                obs, info = self._reset_world(0, None)
+        self._autoreset[0] = truncated
+        batched = {key: value[None] for key, value in obs.items()}
+        self._last_obs = {key: value.copy() for key, value in batched.items()}
+        infos = extra
+        for key, value in info.items():
+            infos[key], infos[f"_{key}"] = np.array([value], dtype=np.float64), np.array([True])
+        return (batched, np.array([reward], dtype=np.float64), np.array([False]), np.array([truncated]), infos)
 
     def _observe(self, sensordata: np.ndarray, goals: np.ndarray,
                  qpos: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
