@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any, NamedTuple, cast
+from typing import Any, NamedTuple, SupportsFloat, cast
 
 import gymnasium as gym
 import mujoco
@@ -341,7 +341,8 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         extra: dict[str, Any] = {}
         if ended and mode == AutoresetMode.NEXT_STEP:
             obs, info = self._reset_world(0, None)
-            reward, truncated = 0.0, False
+            reward: SupportsFloat = 0.0
+            truncated = False
         else:
             obs, reward, _, _, info = env.step(action)
             env.get_state(self._worlds.state[0])
