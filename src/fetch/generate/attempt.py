@@ -1,0 +1,177 @@
+"""One generation attempt: for each subtask pick a source segment, carry it over to the object's
+new pose, blend it in from where the hand is, execute it through the env, and keep the result if
+the task succeeded."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import gymnasium as gym
+import numpy as np
+
+from fetch.dataset.episode import Demo, EpisodeBuffer
+from fetch.dataset.formats import recorded_layout
+from fetch.errors import FetchError, UnknownNameError
+from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
+from fetch.robot import ACTION_STEP
+from fetch.tasks.subtasks import Frame, Scene
+
+SELECTIONS = ("nearest", "random")
+"""How a source segment is chosen for each subtask: among the `nearest_k` whose hand started
+closest to where the hand is now (in the subtask's frame), or uniformly."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Options:
+    """How attempts are made (every field is recorded in the dataset and must match on resume)."""
+
+    max_steps: int
+    """steps per attempt at most."""
+    success_hold_steps: int = 5
+    """an attempt succeeds once `is_success` has held this many consecutive steps (and stops there)."""
+    selection: str = "nearest"
+    nearest_k: int = 3
+    noise: float = 0.05
+    """standard deviation of Gaussian noise added to a[:3] (MimicGen's 0.05), in action units."""
+    transit_speed: float = 0.8
+    """the blend-in moves the hand at most this fraction of full speed on top of the segment's motion."""
+    blend_fraction: float = 0.75
+    """the offset is blended out over this fraction of the steps before the segment's closest
+    approach to its reference (so the grasp or placement itself is replayed exactly)."""
+
+    def __post_init__(self) -> None:
+        if self.selection not in SELECTIONS:
+            raise UnknownNameError("selection", self.selection, SELECTIONS)
+        for name, value, low in (("max_steps", self.max_steps, 1), ("success_hold_steps", self.success_hold_steps, 1),
+                                 ("nearest_k", self.nearest_k, 1)):
+            if value < low:
+                raise FetchError(f"--{name.replace('_', '-')} must be at least {low}, got {value}")
+        if not (math.isfinite(self.noise) and self.noise >= 0):
+            raise FetchError(f"--noise must be a finite standard deviation >= 0, got {self.noise}")
+        if not 0 < self.transit_speed <= 1 or not 0 <= self.blend_fraction <= 1:
+            raise FetchError("transit_speed must be in (0, 1] and blend_fraction in [0, 1]")
+
+
+class Result(NamedTuple):
+    """What one attempt gave: a demo if it succeeded, and which source segments it used."""
+
+    number: int
+    seed: int
+    success: bool
+    steps: int
+    choices: tuple[tuple[str, int, int], ...]
+    """per subtask executed: (source demo, first step, end step)."""
+    demo: Demo | None
+
+
+def rng_for(seed: int, number: int) -> np.random.Generator:
+    """The random stream of attempt `number` (segment choices, noise): the same in any process."""
+    return np.random.default_rng([seed, number])
+
+
+class Generator:
+    """Makes attempts in one env from a fixed set of source segments (`sources[d][k]`: demo d's
+    segment of subtask k)."""
+
+    def __init__(self, env_id: str, env_kwargs: dict[str, Any], sources: Sequence[Sequence[Segment]],
+                 options: Options, seed: int) -> None:
+        self.env = gym.make(env_id, max_episode_steps=options.max_steps, **env_kwargs)
+        base: Any = self.env.unwrapped
+        self.base = base
+        self.env_id = env_id
+        self.subtasks = type(base.task).subtasks
+        if not sources:
+            raise FetchError("no source demo could be cut into subtasks; nothing to generate from")
+        self.sources = sources
+        self.options = options
+        self.seed = seed
+        self.scene = Scene(base.model)
+        self.buffer = EpisodeBuffer(recorded_layout(self.env), capacity=options.max_steps)
+        self._start_in_frame = [np.stack([s[k].hand_in_frame() for s in sources]) for k in range(len(self.subtasks))]
+
+    def choose(self, k: int, frame: Frame, held: np.ndarray, rng: np.random.Generator) -> Segment:
+        """The source segment for subtask `k`, the hand being at `held` [m] and its frame at `frame`."""
+        n = len(self.sources)
+        if self.options.selection == "random":
+            return self.sources[int(rng.integers(n))][k]
+        distance = np.linalg.norm(self._start_in_frame[k] - to_frame(frame, held), axis=1)
+        nearest = np.argsort(distance, kind="stable")[: self.options.nearest_k]
+        return self.sources[int(nearest[int(rng.integers(len(nearest)))])][k]
+
+    def plan(self, segment: Segment, frame: Frame, held: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Targets (N, 3) [m] and finger commands (N,): the segment carried over to `frame`, with the
+        hand's offset from its start blended out (MimicGen interpolates first; we spread the offset
+        over the segment's approach, and prepend steps only when that would be too fast)."""
+        o = self.options
+        moved = from_frame(frame, to_frame(segment.frame, segment.targets))
+        start = from_frame(frame, to_frame(segment.frame, segment.held))
+        offset = held - start
+        n_blend = int(o.blend_fraction * segment.closest)
+        n_needed = math.ceil(float(np.abs(offset).max()) / (o.transit_speed * ACTION_STEP) - 1e-9)
+        n_pre = max(0, n_needed - n_blend)
+        span = n_pre + n_blend
+        weights = np.clip(1.0 - np.arange(1, n_pre + segment.length + 1) / span, 0.0, 1.0) if span else \
+            np.zeros(n_pre + segment.length)
+        path = np.concatenate([np.repeat(start[None], n_pre, axis=0), moved]) + weights[:, None] * offset
+        grips = np.concatenate([np.full(n_pre, segment.grips[0]), segment.grips])
+        return path, grips
+
+    def attempt(self, number: int) -> Result:
+        """Attempt `number`: reset with seed + number, execute one segment per subtask."""
+        o, env, base, buf = self.options, self.env, self.base, self.buffer
+        seed = self.seed + number
+        rng = rng_for(self.seed, number)
+        obs, info = env.reset(seed=seed)
+        buf.begin(obs, base.get_state())
+        started = time.time()
+        held_for, steps, grip = 0, 0, 0.0
+        choices: list[tuple[str, int, int]] = []
+        success = False
+        target = held_grip(base)
+        for k, subtask in enumerate(self.subtasks):
+            if success or steps >= o.max_steps:
+                break
+            held = held_grip(base)
+            frame = subtask.frame(self.scene, base.data)
+            segment = self.choose(k, frame, held, rng)
+            choices.append((segment.demo, segment.start, segment.end))
+            path, grips = self.plan(segment, frame, held)
+            for target, grip in zip(path, grips, strict=True):
+                success, held_for = self._step(target, grip, rng, held_for)
+                steps += 1
+                if success or steps >= o.max_steps:
+                    break
+        # The source's last segment ends when its success had held; give ours a few steps more.
+        extra = 2 * o.success_hold_steps
+        while not success and steps < o.max_steps and extra > 0:
+            success, held_for = self._step(target, grip, rng, held_for)
+            steps += 1
+            extra -= 1
+        demo = None
+        if success:
+            demo = buf.demo({"seed": seed, "success": True, "env_id": self.env_id, "device": "generate",
+                             "attempt": number, "control_hz": 0.0, "achieved_hz": 0.0, "started": started,
+                             "ended": time.time()})
+            labels = annotate(base, self.subtasks, demo.arrays["states"]).labels
+            demo.arrays["subtasks"] = labels
+        return Result(number, seed, success, steps, tuple(choices), demo)
+
+    def _step(self, target: np.ndarray, grip: float, rng: np.random.Generator, held_for: int) -> tuple[bool, int]:
+        base, buf = self.base, self.buffer
+        move = (target - held_grip(base)) / ACTION_STEP
+        if self.options.noise:
+            move = move + rng.normal(0.0, self.options.noise, 3)
+        action = np.append(np.clip(move, -1.0, 1.0), np.clip(grip, -1.0, 1.0)).astype(np.float32)
+        obs, reward, _, _, info = self.env.step(action)
+        base.get_state(out=buf.state_row())
+        ok = info["is_success"] >= 1.0
+        buf.record(base.last_action, obs, float(reward), False, False, ok, time.time())
+        held_for = held_for + 1 if ok else 0
+        return held_for >= self.options.success_hold_steps, held_for
+
+    def close(self) -> None:
+        self.env.close()

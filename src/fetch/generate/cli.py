@@ -1,0 +1,75 @@
+"""The `gym-fetch generate` and `gym-fetch subtasks` subcommands (wired into `fetch.cli`)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+SUBTASKS_HELP = "cut a dataset's demos into their task's subtasks and print where each begins"
+
+
+def add_generate_parser(sub: Any) -> None:
+    g = sub.add_parser("generate", help="generate many demos from a few (object-centric, MimicGen-style)",
+                       description="Cut each source demo into its task's object-centric subtasks, then for each new "
+                                   "episode carry one source segment per subtask over to the objects' new poses, "
+                                   "execute it and keep the successes. The output is an ordinary dataset; run the "
+                                   "same command again after an interruption to finish it.")
+    g.add_argument("--source", required=True, help="the dataset to generate from (a directory or demos.hdf5)")
+    g.add_argument("--out", required=True, help="the output directory (a dataset like collect's)")
+    g.add_argument("--demos", type=int, required=True, help="how many demos --out should hold")
+    g.add_argument("--seed", type=int, default=0, help="attempt n resets with seed + n (default 0)")
+    g.add_argument("--workers", type=int, default=None, help="worker processes (default: one per core)")
+    g.add_argument("--ray", nargs="?", const="auto", default=None, metavar="ADDRESS",
+                   help="run attempts as Ray actors on a cluster (default address: auto, the cluster this "
+                        "machine belongs to; 'local' starts one here)")
+    g.add_argument("--max-steps", type=int, default=None, help="steps per attempt (default: the env's horizon)")
+    g.add_argument("--success-hold-steps", type=int, default=5, help="success must hold this long (default 5)")
+    g.add_argument("--selection", default="nearest", help="source segment choice: nearest (default) or random")
+    g.add_argument("--nearest-k", type=int, default=3, help="choose among this many nearest segments (default 3)")
+    g.add_argument("--noise", type=float, default=0.05, help="action noise std, action units (default 0.05)")
+    g.add_argument("--max-attempts", type=int, default=None, help="give up after this many (default 50 per demo)")
+    g.set_defaults(run=run_generate)
+    s = sub.add_parser("subtasks", help=SUBTASKS_HELP)
+    s.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
+    s.add_argument("--demo", default=None, help="a demo index or name (default: all)")
+    s.set_defaults(run=run_subtasks)
+
+
+def run_generate(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    from fetch.generate.attempt import Options
+    from fetch.generate.run import GenerateConfig, generate
+
+    if args.max_steps is None:
+        from fetch.dataset.reader import open_dataset
+
+        with open_dataset(args.source) as ds:
+            env_id = ds.env_id
+        args.max_steps = int(gym.spec(env_id).max_episode_steps or 50)
+    options = Options(max_steps=args.max_steps, success_hold_steps=args.success_hold_steps, selection=args.selection,
+                      nearest_k=args.nearest_k, noise=args.noise)
+    config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
+                            workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray)
+    summary = generate(config)
+    print(summary.describe())
+    return 1 if summary.gave_up else 0
+
+
+def run_subtasks(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    from fetch.dataset.reader import open_dataset, require_valid
+    from fetch.generate.segments import annotate
+
+    with open_dataset(args.file) as ds:
+        names = ds.select(args.demo)
+        require_valid(ds, names, images=False)
+        env: Any = gym.make(ds.env_id, **ds.env_kwargs).unwrapped
+        subtasks = type(env.task).subtasks
+        print(f"{ds.env_id}: subtasks {', '.join(s.name for s in subtasks)}")
+        for name in names:
+            a = annotate(env, subtasks, ds.arrays(name)["states"])
+            parts = ", ".join(f"{subtasks[k].name} {lo}-{hi - 1}" for k, (lo, hi) in enumerate(a.bounds()))
+            print(f"{name}: {parts}" + ("" if a.complete else " (incomplete: not every subtask ended)"))
+    return 0

@@ -1,0 +1,193 @@
+"""`gym-fetch generate`: many demos from a few, written in attempt order to an ordinary dataset.
+
+The output directory is a collector's dataset (`gym-fetch info`, `replay --check`, `merge` and the
+exports read it). `--demos` is the number it should hold: a run stopped by a kill continues, on the
+same command, from the attempt after the last demo saved, and ends with the same demos an
+uninterrupted run would have written.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium as gym
+
+from fetch.dataset.formats import open_writer
+from fetch.dataset.reader import open_dataset
+from fetch.errors import FetchError
+from fetch.generate.attempt import Options, Result
+from fetch.generate.sources import Sources, load_sources
+from fetch.generate.workers import Backend, Pool, RayCluster, Serial, Work, default_workers
+
+MAX_SEED = 2**62
+
+
+@dataclasses.dataclass(frozen=True)
+class GenerateConfig:
+    """A generation run's settings (the `gym-fetch generate` flags)."""
+
+    source: str
+    out: str
+    demos: int
+    seed: int = 0
+    workers: int | None = None
+    """None: one per core (or, with Ray, per CPU of the cluster)."""
+    options: Options | None = None
+    """None: the defaults, with max_steps the env's registered horizon."""
+    max_attempts: int | None = None
+    """give up after this many attempts in all (None: 50 per demo asked for)."""
+    ray: str | None = None
+    """None: no Ray; "local": start a Ray instance here; else a cluster's address ("auto", "ray://...")."""
+    nice: int = 0
+    """niceness of the worker processes (not Ray's)."""
+
+    def __post_init__(self) -> None:
+        if self.demos < 1:
+            raise FetchError(f"--demos must be at least 1, got {self.demos}")
+        if not 0 <= self.seed <= MAX_SEED:
+            raise FetchError(f"--seed must be a whole number from 0 to 2**62, got {self.seed}")
+        if self.workers is not None and self.workers < 1:
+            raise FetchError(f"--workers must be at least 1, got {self.workers}")
+        if self.max_attempts is not None and self.max_attempts < 1:
+            raise FetchError(f"--max-attempts must be at least 1, got {self.max_attempts}")
+        if not str(self.out).strip():
+            raise FetchError("--out must name a directory (it is empty)")
+
+
+@dataclasses.dataclass
+class Summary:
+    saved: int
+    """demos saved by this run."""
+    total: int
+    """demos in the dataset now."""
+    attempts: int
+    """attempts made by this run."""
+    successes: int
+    seconds: float
+    workers: int
+    out: str
+    gave_up: bool = False
+
+    @property
+    def success_rate(self) -> float:
+        return self.successes / self.attempts if self.attempts else 0.0
+
+    def describe(self) -> str:
+        rate = 60 * self.saved / self.seconds if self.seconds > 0 else 0.0
+        text = (f"{self.attempts} attempts, {self.saved} saved this run ({self.total} in {self.out}), success rate "
+                f"{100 * self.success_rate:.0f}%, {rate:.0f} demos/min on {self.workers} worker(s)")
+        return text + ("\ngave up: --max-attempts reached" if self.gave_up else "")
+
+
+def settings_of(sources: Sources, options: Options, seed: int) -> dict[str, Any]:
+    """What the dataset records as made it; a resumed run must match every field."""
+    return {"max_steps": options.max_steps, "success_hold_steps": options.success_hold_steps,
+            "stop_on_success": True, "ignore_env_done": False,
+            "generate": {"source": sources.path, "source_fingerprint": sources.fingerprint,
+                         "source_demos": len(sources.segments), "subtasks": list(sources.subtasks), "seed": seed,
+                         **dataclasses.asdict(options)}}
+
+
+def _resume_point(out: str) -> tuple[int, int | None]:
+    """(demos in the dataset, the attempt number of its last demo)."""
+    with open_dataset(out) as ds:
+        if not ds.demo_names:
+            return 0, None
+        return len(ds.demo_names), max(int(ds.attrs(n)["attempt"]) for n in ds.demo_names)
+
+
+def make_backend(config: GenerateConfig, work: Work) -> Backend:
+    if config.ray is not None:
+        return RayCluster(work, None if config.ray == "local" else config.ray, config.workers)
+    workers = config.workers or default_workers()
+    return Serial(work) if workers == 1 else Pool(work, workers, config.nice)
+
+
+def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -> Summary:
+    """Generate until `--out` holds `config.demos` demos (or the attempts run out)."""
+    say = log or (lambda text: print(text, file=sys.stderr, flush=True))
+    sources = load_sources(config.source)
+    spec = gym.spec(sources.env_id)
+    options = config.options or Options(max_steps=int(spec.max_episode_steps or 50))
+    if sources.skipped:
+        say(f"{len(sources.skipped)} source demo(s) could not be cut into {', '.join(sources.subtasks)} "
+            f"and are not used: {', '.join(sources.skipped[:5])}")
+    env = gym.make(sources.env_id, max_episode_steps=options.max_steps, **sources.env_kwargs)
+    writer = open_writer("hdf5", config.out, env, settings=settings_of(sources, options, config.seed),
+                         device="generate")
+    env.close()
+    try:
+        have, last = _resume_point(config.out)
+        first = 0 if last is None else last + 1
+        writer.attempts = first
+        summary = Summary(0, have, 0, 0, 0.0, 1, config.out)
+        if have >= config.demos:
+            return summary
+        limit = config.max_attempts or 50 * config.demos
+        backend = make_backend(config, Work(sources, options, config.seed))
+        summary.workers = backend.workers
+        started = time.perf_counter()
+        bar = _Bar(config.demos, have)
+        previous = last
+        try:
+            for result in backend.results(first):
+                writer.reserve_attempt()
+                summary.attempts += 1
+                if result.demo is not None:
+                    _commit(writer, result, previous)
+                    previous = result.number
+                    summary.successes += 1
+                    summary.saved += 1
+                    summary.total += 1
+                bar.show(summary, time.perf_counter() - started)
+                if summary.total >= config.demos:
+                    break
+                if summary.attempts >= limit:
+                    summary.gave_up = True
+                    break
+        finally:
+            summary.seconds = time.perf_counter() - started
+            bar.end()
+            backend.close()
+    finally:
+        writer.close()
+    return summary
+
+
+def _commit(writer: Any, result: Result, previous: int | None) -> None:
+    demo = result.demo
+    assert demo is not None
+    demo.attrs.update(
+        source_demos=json.dumps([c[0] for c in result.choices]),
+        source_segments=json.dumps([[c[1], c[2]] for c in result.choices]),
+        generation_attempts=result.number - (-1 if previous is None else previous))
+    writer.commit(demo)
+
+
+class _Bar:
+    """One line on stderr, redrawn (a terminal only): demos, attempts, running success rate, rate."""
+
+    def __init__(self, target: int, have: int) -> None:
+        self.target, self.have = target, have
+        self.live = sys.stderr.isatty()
+        self.last = 0.0
+
+    def show(self, s: Summary, elapsed: float) -> None:
+        if not self.live or (elapsed - self.last < 0.2 and s.total < self.target):
+            return
+        self.last = elapsed
+        width = 24
+        filled = int(width * s.total / self.target)
+        rate = 60 * s.saved / elapsed if elapsed > 0 else 0.0
+        sys.stderr.write(f"\rgenerate [{'#' * filled}{' ' * (width - filled)}] {s.total}/{self.target} demos, "
+                         f"{s.attempts} attempts, success {100 * s.success_rate:.0f}%, {rate:.0f}/min ")
+        sys.stderr.flush()
+
+    def end(self) -> None:
+        if self.live:
+            sys.stderr.write("\n")

@@ -1,0 +1,124 @@
+"""Cutting demos into object-centric segments: per-step subtask labels from the saved states, and
+each segment's hand targets, gripper commands and reference frame (what generation replays)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from fetch.errors import FetchError
+from fetch.robot import ACTION_STEP
+from fetch.tasks.subtasks import Frame, Scene, Subtask, Tracker
+
+
+@dataclasses.dataclass(frozen=True)
+class Segment:
+    """One subtask's part of a source demo: steps `start` to `end` (exclusive)."""
+
+    demo: str
+    start: int
+    end: int
+    held: np.ndarray
+    """[m, world] where the grip site's reference was before the first step (what the step moves from)."""
+    targets: np.ndarray
+    """(L, 3) [m, world] each step's grip-site target: its reference plus 0.05 * a[:3]."""
+    grips: np.ndarray
+    """(L,) each step's a[3] (the fingers)."""
+    frame: Frame
+    """the subtask's reference frame at the segment's start."""
+    closest: int
+    """the step whose target comes closest to the frame's origin (the grasp, the placement)."""
+
+    @property
+    def length(self) -> int:
+        return self.end - self.start
+
+    def hand_in_frame(self) -> np.ndarray:
+        """[m] `held` in the segment's frame: what nearest-neighbour selection compares."""
+        return to_frame(self.frame, self.held)
+
+
+def to_frame(frame: Frame, points: np.ndarray) -> np.ndarray:
+    """World points [m] expressed in `frame` (its origin, rotated by -yaw about z)."""
+    c, s = math.cos(frame.yaw), math.sin(frame.yaw)
+    d = np.asarray(points, np.float64) - frame.pos
+    x, y = d[..., 0], d[..., 1]
+    return np.stack([c * x + s * y, -s * x + c * y, d[..., 2]], axis=-1)
+
+
+def from_frame(frame: Frame, points: np.ndarray) -> np.ndarray:
+    """Points [m] in `frame` expressed in the world (the inverse of `to_frame`)."""
+    c, s = math.cos(frame.yaw), math.sin(frame.yaw)
+    p = np.asarray(points, np.float64)
+    x, y = p[..., 0], p[..., 1]
+    return np.stack([c * x - s * y, s * x + c * y, p[..., 2]], axis=-1) + frame.pos
+
+
+def held_grip(base: Any) -> np.ndarray:
+    """[m, world] the grip-site position the next action moves from: the held mocap pose less the
+    fixed offset from the grip site to the mocap body (the gripper never turns)."""
+    return base.data.mocap_pos[base.robot.mocap] - base.robot.grip_to_mocap
+
+
+@dataclasses.dataclass(frozen=True)
+class Annotation:
+    """A demo cut into subtasks."""
+
+    labels: np.ndarray
+    """(T,) uint8: the subtask index of each step."""
+    complete: bool
+    """every subtask's signal but the last's fired (the demo has a segment for each)."""
+    held: np.ndarray
+    """(T + 1, 3) [m] the grip-site reference before each step (and after the last)."""
+    frames: list[Frame | None]
+    """per subtask, its frame at its segment's first step (None: the demo never reached it)."""
+
+    def bounds(self) -> list[tuple[int, int]]:
+        """Per subtask reached, its steps [start, end)."""
+        out = []
+        for k in range(int(self.labels.max()) + 1 if len(self.labels) else 0):
+            steps = np.flatnonzero(self.labels == k)
+            out.append((int(steps[0]), int(steps[-1]) + 1))
+        return out
+
+
+def annotate(base: Any, subtasks: tuple[Subtask, ...], states: np.ndarray) -> Annotation:
+    """Label every step of a demo from its saved states (`states[t + 1]` is after step t), by
+    restoring each in the env `base` (a FetchEnv; its state is changed)."""
+    if not subtasks:
+        raise FetchError(f"{base.task.name} declares no subtasks, so its demos cannot be segmented")
+    scene = Scene(base.model)
+    tracker = Tracker(subtasks, scene)
+    t_total = len(states) - 1
+    labels = np.zeros(t_total, np.uint8)
+    held = np.zeros((t_total + 1, 3))
+    frames: list[Frame | None] = [None] * len(subtasks)
+    base.set_state(states[0])
+    held[0] = held_grip(base)
+    frames[0] = subtasks[0].frame(scene, base.data)
+    for t in range(t_total):
+        base.set_state(states[t + 1])
+        held[t + 1] = held_grip(base)
+        before = tracker.current
+        labels[t] = tracker.step(base.data)
+        if tracker.current != before and t + 1 < t_total:
+            # The next subtask starts with step t + 1, from the state after step t.
+            frames[tracker.current] = subtasks[tracker.current].frame(scene, base.data)
+    return Annotation(labels, tracker.complete and frames[-1] is not None, held, frames)
+
+
+def segments_of(name: str, annotation: Annotation, actions: np.ndarray) -> list[Segment]:
+    """A complete demo's segments, one per subtask (see `annotate`)."""
+    out = []
+    for k, (start, end) in enumerate(annotation.bounds()):
+        frame = annotation.frames[k]
+        assert frame is not None
+        held = annotation.held[start:end]
+        targets = held + ACTION_STEP * actions[start:end, :3].astype(np.float64)
+        closest = int(np.argmin(np.linalg.norm(targets - frame.pos, axis=1)))
+        out.append(Segment(name, start, end, annotation.held[start].copy(), targets,
+                           actions[start:end, 3].astype(np.float64), frame, closest))
+    return out

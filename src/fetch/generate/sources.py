@@ -1,0 +1,61 @@
+"""The source demos of a generation run: loaded, cut into subtask segments, fingerprinted."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+from typing import Any
+
+import gymnasium as gym
+
+from fetch.dataset.reader import open_dataset, require_valid
+from fetch.errors import FetchError
+from fetch.generate.segments import Segment, annotate, segments_of
+
+
+@dataclasses.dataclass(frozen=True)
+class Sources:
+    """Segments of every usable source demo (`segments[d][k]`: demo d, subtask k)."""
+
+    path: str
+    env_id: str
+    env_kwargs: dict[str, Any]
+    subtasks: tuple[str, ...]
+    segments: tuple[tuple[Segment, ...], ...]
+    skipped: tuple[str, ...]
+    """successful demos that could not be cut into every subtask (a signal never fired)."""
+    fingerprint: str
+    """SHA-256 of the used demos' names, seeds, actions and states: a resumed run must use the same."""
+
+
+def load_sources(path: str | os.PathLike[str]) -> Sources:
+    """Read a dataset and cut each successful demo into its task's subtasks."""
+    with open_dataset(path) as ds:
+        require_valid(ds)
+        env = gym.make(ds.env_id, **ds.env_kwargs)
+        base: Any = env.unwrapped
+        subtasks = type(base.task).subtasks
+        if not subtasks:
+            raise FetchError(f"{ds.env_id} declares no subtasks (Task.subtasks), so it cannot be generated from")
+        digest = hashlib.sha256()
+        segments, skipped = [], []
+        for name in ds.demo_names:
+            attrs = ds.attrs(name)
+            if not attrs.get("success"):
+                continue
+            arrays = ds.arrays(name)
+            annotation = annotate(base, subtasks, arrays["states"])
+            if not annotation.complete:
+                skipped.append(name)
+                continue
+            segments.append(tuple(segments_of(name, annotation, arrays["actions"])))
+            digest.update(f"{name}:{attrs['seed']}".encode())
+            digest.update(arrays["actions"].tobytes())
+            digest.update(arrays["states"].tobytes())
+        env.close()
+        if not segments:
+            raise FetchError(f"{ds.path}: none of its {len(ds.demo_names)} demos is a success that can be cut into "
+                             f"the subtasks of {ds.env_id} ({', '.join(s.name for s in subtasks)})")
+        return Sources(str(ds.path.resolve()), ds.env_id, ds.env_kwargs, tuple(s.name for s in subtasks),
+                       tuple(segments), tuple(skipped), digest.hexdigest())

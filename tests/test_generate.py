@@ -1,0 +1,258 @@
+"""Demo generation: subtask annotation, generated datasets that validate and replay exactly, the same
+demos whatever the number of workers, resume after a SIGKILL, provenance, bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import fetch
+from fetch.cli import main
+from fetch.dataset import open_dataset
+from fetch.experts import make_expert
+from fetch.generate.segments import annotate, from_frame, to_frame
+from fetch.tasks import task_class
+from fetch.tasks.subtasks import Frame
+
+SIZE_KEYS = ("timestamps",)
+"""Arrays that record wall-clock time, so differ between two runs that make the same demos."""
+TIME_ATTRS = ("started", "ended")
+
+
+def collect(env_id: str, out: pathlib.Path, episodes: int = 3) -> pathlib.Path:
+    assert main(["collect", "--env", env_id, "--device", "expert", "--episodes", str(episodes), "--render", "none",
+                 "--out", str(out)]) == 0
+    return out
+
+
+def gen_argv(source: pathlib.Path, out: pathlib.Path, demos: int, *more: str) -> list[str]:
+    return ["generate", "--source", str(source), "--out", str(out), "--demos", str(demos), "--seed", "100", *more]
+
+
+@pytest.fixture(scope="module")
+def source(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    """Three PickPlace-v2 expert demos."""
+    return collect("PickPlace-v2", tmp_path_factory.mktemp("src") / "pick")
+
+
+@pytest.fixture(scope="module")
+def serial(source: pathlib.Path, tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    """Twelve demos generated in this process (one worker)."""
+    out = tmp_path_factory.mktemp("gen") / "serial"
+    assert main(gen_argv(source, out, 12, "--workers", "1")) == 0
+    return out
+
+
+def same_demos(a: pathlib.Path, b: pathlib.Path) -> None:
+    """Every array and attribute equal, but wall-clock times."""
+    with open_dataset(a) as x, open_dataset(b) as y:
+        assert x.demo_names == y.demo_names
+        assert x.masks() == y.masks()
+        for name in x.demo_names:
+            ax, ay = x.arrays(name), y.arrays(name)
+            assert ax.keys() == ay.keys()
+            for key in ax:
+                if key not in SIZE_KEYS:
+                    assert np.array_equal(ax[key], ay[key]), (name, key)
+            tx = {k: v for k, v in x.attrs(name).items() if k not in TIME_ATTRS}
+            ty = {k: v for k, v in y.attrs(name).items() if k not in TIME_ATTRS}
+            assert tx == ty, name
+
+
+# -- subtasks ---------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("env_id", fetch.ENV_IDS)
+def test_every_task_declares_subtasks_its_expert_demos_complete(env_id: str) -> None:
+    """Each task's subtasks end in order on an expert demo: every signal but the last fires."""
+    subtasks = task_class(env_id).subtasks
+    assert subtasks and subtasks[-1].done is None and all(s.done is not None for s in subtasks[:-1])
+    env = gym.make(env_id, max_episode_steps=100)
+    base = env.unwrapped
+    expert = make_expert(env)
+    seed = 0 if env_id != "Slide-v2" else 1  # a seed its expert solves
+    obs, _ = env.reset(seed=seed)
+    expert.reset()
+    states = [base.get_state()]
+    for _ in range(60):
+        obs, _, _, _, _ = env.step(expert(obs))
+        states.append(base.get_state())
+    annotation = annotate(base, subtasks, np.array(states))
+    assert annotation.complete, (env_id, annotation.bounds())
+    labels = annotation.labels
+    assert labels[0] == 0 and labels[-1] == len(subtasks) - 1
+    assert np.all(np.diff(labels.astype(int)) >= 0)
+    env.close()
+
+
+def test_a_demo_that_never_grasps_is_not_complete() -> None:
+    """The grasp signal needs the object between the fingers: a hand that only hovers never ends it."""
+    env = gym.make("PickPlace-v2")
+    base = env.unwrapped
+    env.reset(seed=0)
+    states = [base.get_state()]
+    for _ in range(20):
+        env.step(np.array([0.0, 0.0, 0.3, -1.0], np.float32))
+        states.append(base.get_state())
+    annotation = annotate(base, task_class("PickPlace-v2").subtasks, np.array(states))
+    assert not annotation.complete and not annotation.labels.any()
+
+
+def test_frames_carry_points_over_with_their_heading() -> None:
+    """A point 10 cm ahead of a source frame lands 10 cm ahead of the new frame, along its heading."""
+    src = Frame(np.array([1.0, 0.5, 0.4]), 0.0)
+    new = Frame(np.array([1.3, 0.7, 0.45]), math.pi / 2)
+    ahead = np.array([[1.1, 0.5, 0.5]])
+    moved = from_frame(new, to_frame(src, ahead))
+    assert np.allclose(moved, [[1.3, 0.8, 0.55]])
+    assert np.allclose(to_frame(new, moved), to_frame(src, ahead))
+
+
+# -- generation -------------------------------------------------------------------------------------
+
+def test_generated_dataset_validates_replays_exactly_and_labels_its_steps(serial: pathlib.Path) -> None:
+    assert main(["info", str(serial)]) == 0
+    assert main(["replay", str(serial), "--check"]) == 0
+    env = gym.make("PickPlace-v2").unwrapped
+    subtasks = task_class("PickPlace-v2").subtasks
+    with open_dataset(serial) as ds:
+        assert len(ds.demo_names) == 12
+        for name in ds.demo_names:
+            arrays = ds.arrays(name)
+            assert arrays["is_success"][-1] == 1
+            recomputed = annotate(env, subtasks, arrays["states"])
+            assert np.array_equal(arrays["subtasks"], recomputed.labels)
+            assert set(arrays["subtasks"].tolist()) == {0, 1}  # grasped, then placed
+
+
+def test_generated_demos_start_from_new_object_poses(source: pathlib.Path, serial: pathlib.Path) -> None:
+    """Generation is not replay: every generated demo starts from a pose no source demo had."""
+    with open_dataset(source) as src, open_dataset(serial) as gen:
+        starts = [src.arrays(n)["obs/observation"][0, 3:6] for n in src.demo_names]
+        for name in gen.demo_names:
+            obj = gen.arrays(name)["obs/observation"][0, 3:6]
+            assert min(np.linalg.norm(obj - s) for s in starts) > 1e-3
+
+
+def test_provenance_names_real_source_segments(source: pathlib.Path, serial: pathlib.Path) -> None:
+    env = gym.make("PickPlace-v2").unwrapped
+    subtasks = task_class("PickPlace-v2").subtasks
+    with open_dataset(source) as src:
+        bounds = {n: annotate(env, subtasks, src.arrays(n)["states"]).bounds() for n in src.demo_names}
+        fingerprint = None
+    with open_dataset(serial) as ds:
+        settings = ds.settings["generate"]
+        assert settings["source"] == str((source / "demos.hdf5").resolve())
+        assert settings["subtasks"] == ["grasp", "place"] and settings["source_demos"] == 3
+        fingerprint = settings["source_fingerprint"]
+        previous = -1
+        for name in ds.demo_names:
+            attrs = ds.attrs(name)
+            demos, segments = json.loads(attrs["source_demos"]), json.loads(attrs["source_segments"])
+            assert len(demos) == len(segments) == 2
+            for k, (demo, segment) in enumerate(zip(demos, segments, strict=True)):
+                assert tuple(segment) == bounds[demo][k]
+            assert attrs["device"] == "generate" and attrs["seed"] == 100 + attrs["attempt"]
+            assert attrs["generation_attempts"] == attrs["attempt"] - previous >= 1
+            previous = attrs["attempt"]
+    assert isinstance(fingerprint, str) and len(fingerprint) == 64
+
+
+def test_same_demos_whatever_the_number_of_workers(source: pathlib.Path, serial: pathlib.Path,
+                                                   tmp_path: pathlib.Path) -> None:
+    out = tmp_path / "two"
+    assert main(gen_argv(source, out, 12, "--workers", "2")) == 0
+    same_demos(serial, out)
+
+
+def test_running_again_when_complete_adds_nothing_and_more_continues(source: pathlib.Path, serial: pathlib.Path,
+                                                                     tmp_path: pathlib.Path) -> None:
+    """--demos is the size the dataset should reach: a first run of 5 then one of 12 equals one run of 12."""
+    out = tmp_path / "grown"
+    assert main(gen_argv(source, out, 5, "--workers", "1")) == 0
+    assert main(gen_argv(source, out, 5, "--workers", "1")) == 0
+    with open_dataset(out) as ds:
+        assert len(ds.demo_names) == 5
+    assert main(gen_argv(source, out, 12, "--workers", "1")) == 0
+    same_demos(serial, out)
+
+
+def test_resume_after_sigkill_gives_the_same_demos(source: pathlib.Path, serial: pathlib.Path,
+                                                   tmp_path: pathlib.Path) -> None:
+    out = tmp_path / "killed"
+    argv = [sys.executable, "-m", "fetch.cli", *gen_argv(source, out, 12, "--workers", "1")]
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    episodes = out / "episodes"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if episodes.is_dir() and len(list(episodes.glob("demo_*.hdf5"))) >= 3:
+            break
+        time.sleep(0.01)
+    assert proc.poll() is None, "the run ended before it could be killed"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    with open_dataset(out) as ds:
+        assert 0 < len(ds.demo_names) < 12
+    assert main(gen_argv(source, out, 12, "--workers", "1")) == 0
+    same_demos(serial, out)
+
+
+def test_resume_with_other_settings_is_refused(source: pathlib.Path, serial: pathlib.Path,
+                                               tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "other"
+    assert main(gen_argv(source, out, 2, "--workers", "1")) == 0
+    assert main(gen_argv(source, out, 4, "--workers", "1", "--noise", "0.1")) == 2
+    assert "recorded differently" in capsys.readouterr().err
+
+
+def test_a_drawer_task_generates_too(tmp_path: pathlib.Path) -> None:
+    src = collect("Drawer-open-v2", tmp_path / "src", episodes=2)
+    out = tmp_path / "gen"
+    assert main(["generate", "--source", str(src), "--out", str(out), "--demos", "4", "--workers", "1"]) == 0
+    assert main(["replay", str(out), "--check"]) == 0
+    with open_dataset(out) as ds:
+        assert all(set(ds.arrays(n)["subtasks"].tolist()) == {0, 1} for n in ds.demo_names)
+
+
+# -- bad input --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("more", "message"), [
+    (["--selection", "closest"], "unknown selection 'closest'"),
+    (["--workers", "0"], "--workers must be at least 1"),
+    (["--noise", "-1"], "--noise must be a finite standard deviation"),
+    (["--max-steps", "0"], "--max-steps must be at least 1"),
+])
+def test_bad_arguments_are_named(source: pathlib.Path, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str],
+                                 more: list[str], message: str) -> None:
+    assert main(gen_argv(source, tmp_path / "x", 2, *more)) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
+
+
+def test_demos_must_be_positive(source: pathlib.Path, tmp_path: pathlib.Path,
+                                capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(gen_argv(source, tmp_path / "x", 0)) == 2
+    assert "--demos must be at least 1" in capsys.readouterr().err
+
+
+def test_a_source_without_usable_demos_is_refused(tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Failed demos only (kept with --keep-failures): nothing to cut into segments."""
+    src = tmp_path / "failed"
+    assert main(["collect", "--env", "PickPlace-v2", "--device", "scripted", "--episodes", "1", "--max-steps", "3",
+                 "--keep-failures", "--render", "none", "--out", str(src)]) == 0
+    assert main(gen_argv(src, tmp_path / "x", 2)) == 2
+    assert "none of its 1 demos is a success" in capsys.readouterr().err
+
+
+def test_gives_up_after_max_attempts(source: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """No attempt can succeed in 3 steps: the run stops at --max-attempts with a non-zero exit."""
+    assert main(gen_argv(source, tmp_path / "x", 2, "--workers", "1", "--max-steps", "3", "--max-attempts", "5")) == 1
