@@ -86,6 +86,9 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         self.observation_layout = dict(env.observation_layout)
 
         self._worlds: Worlds = make_worlds(self.model, self.num_envs, self.robot.hand, int(nthread))
+        if not self._worlds.parallel and self.num_envs > 1:
+            gym.logger.warn(f"mujoco {mujoco.__version__} has no mujoco.batch (4.0 on): FetchVectorEnv steps its "
+                            f"{self.num_envs} worlds one after another, on one core (same results)")
         self._layout = StateLayout(self.model)
         self._worlds.state[:] = env.get_state()  # every world as a new env is before its first reset
         self._observer = ob.Observer(self.model, self.task.parts)
