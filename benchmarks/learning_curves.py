@@ -1,0 +1,339 @@
+"""Learning curves: how a policy trained on N expert demos does, per task, recording and policy.
+
+Run with the train extra installed (torch; matplotlib for the plot, optional):
+
+    nice -n 10 python benchmarks/learning_curves.py --results /tmp/learning_curves
+
+Every run (task, recording, policy, demos, training seed) trains with `fetch.learn.train` and
+evaluates 100 episodes on seeds disjoint from the data's; its result is one JSON file under
+`--results`, so a killed benchmark picks up where it stopped (a run already done is skipped, a
+half-trained one resumes from its checkpoint). After every run it rewrites the markdown table
+(`docs/learning_curves.md`) and the plot (`docs/images/learning_curves.png`) from the results so far.
+
+Recordings: `stop` is `gym-fetch collect --device expert` as it is (the attempt ends 10 steps after
+success), `hold` adds `--no-stop-on-success` (every demo runs the 50-step horizon), `dart` records
+the expert under injected Gaussian action noise (std `DART_STD`) and trains on the expert's clean
+action at every visited state (DART: Laskey et al. 2017), with demos running the horizon as in hold.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+import numpy as np
+
+CURVE_TASKS = ("Push-v2", "PickPlace-v2", "Drawer-open-v2", "Bin-place-v2", "Box-close-v2")
+ALL_TASKS = ("Bin-pick-v2", "Bin-place-v2", "Box-open-v2", "Box-close-v2", "Drawer-open-v2", "Drawer-close-v2",
+             "Reach-v2", "Push-v2", "PickPlace-v2", "Slide-v2")
+CURVE_DEMOS = (10, 30, 100, 300)
+SEEDS = (0, 1, 2)
+EPISODES = 100
+RECORDINGS = ("stop", "hold", "dart")
+DART_STD = 0.1
+"""Std of the executed action's noise under DART (the expert table's noise level)."""
+POLICY_VARIANTS: dict[str, dict[str, Any]] = {
+    "mlp-chunk": {"kind": "mlp-chunk"},
+    "mlp": {"kind": "mlp-chunk", "chunk": 1},
+    "gru": {"kind": "gru"},
+}
+"""Policies compared: the default chunked MLP, plain BC (chunk 1), and the recurrent policy."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Job:
+    task: str
+    recording: str
+    policy: str
+    demos: int
+    seed: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.task}__{self.recording}__{self.policy}__n{self.demos}__s{self.seed}"
+
+
+def jobs() -> Iterator[Job]:
+    """Every run, the bar first: 100 demos on every task, then the recordings, the policies, the curves."""
+    for seed in SEEDS:
+        for task in ALL_TASKS:
+            yield Job(task, "stop", "mlp-chunk", 100, seed)
+    for recording in ("hold", "dart"):
+        for seed in SEEDS:
+            for task in CURVE_TASKS:
+                yield Job(task, recording, "mlp-chunk", 100, seed)
+    for seed in SEEDS:
+        for task in ("PickPlace-v2", "Push-v2"):
+            yield Job(task, "stop", "mlp", 100, seed)
+    for seed in SEEDS:
+        for demos in (10, 30, 300):
+            for task in CURVE_TASKS:
+                yield Job(task, "stop", "mlp-chunk", demos, seed)
+    for task in ("PickPlace-v2", "Push-v2"):
+        yield Job(task, "stop", "gru", 100, 0)
+
+
+def collected(results: pathlib.Path, task: str, recording: str, demos: int) -> pathlib.Path:
+    """The dataset of (task, recording) with at least `demos` demos in mask/train, collected once;
+    a collection cut short is discarded and made again."""
+    from fetch.dataset import open_dataset
+
+    size = 350 if task in CURVE_TASKS and recording == "stop" else 120  # mask/valid takes 10 %: 315 to train on
+    done = results / "data" / f"{task}__{recording}"
+    if done.exists():
+        return done
+    partial = results / "data" / f".{done.name}.partial"
+    shutil.rmtree(partial, ignore_errors=True)
+    partial.parent.mkdir(parents=True, exist_ok=True)
+    if recording == "dart":
+        collect_dart(task, size, partial)
+    else:
+        cmd = [sys.executable, "-m", "fetch.cli", "collect", "--env", task, "--device", "expert", "--episodes",
+               str(size), "--render", "none", "--max-steps", "50", "--out", str(partial)]
+        if recording == "hold":
+            cmd.append("--no-stop-on-success")
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    with open_dataset(partial) as ds:
+        assert len(ds.masks()["train"]) >= demos, (task, recording, len(ds.masks()["train"]))
+    partial.rename(done)
+    return done
+
+
+class NoisyExpert:
+    """The expert as a collection device whose executed action carries Gaussian noise (DART)."""
+
+    name = "expert"
+
+    def __init__(self, env_id: str, std: float, seed: int) -> None:
+        from fetch.experts import make_expert
+
+        self.expert = make_expert(env_id)
+        self.std = std
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self) -> None:
+        self.expert.reset()
+
+    def poll(self, obs: Mapping[str, np.ndarray]) -> Any:
+        from fetch.teleop.devices import Command
+
+        clean = np.asarray(self.expert(obs), np.float64)
+        noisy = np.clip(clean + self.rng.normal(0.0, self.std, clean.shape), -1.0, 1.0)
+        return Command(noisy.astype(np.float32))
+
+    def close(self) -> None:
+        pass
+
+
+def collect_dart(task: str, size: int, out: pathlib.Path) -> None:
+    """`size` successful demos of the noisy expert through the real collector (replayable: the executed
+    actions are recorded); `relabelled` later swaps in the clean labels."""
+    from fetch.teleop.session import CollectConfig, Session
+
+    config = CollectConfig(task, out=str(out), episodes=size, max_steps=50, stop_on_success=False,
+                           device="expert", render="none")
+    Session(config, NoisyExpert(task, DART_STD, seed=0), log=lambda _: None).run()
+
+
+def relabelled(path: pathlib.Path) -> Any:
+    """The demos of `path` with every action replaced by the expert's for the recorded observations
+    (the expert reads only the observation, so re-running it along the demo gives what it said then)."""
+    from fetch.dataset import open_dataset
+    from fetch.dataset.schema import OBS_KEYS
+    from fetch.experts import make_expert
+    from fetch.learn.data import load_demos
+
+    demos = load_demos(path)
+    with open_dataset(path) as ds:
+        expert = make_expert(ds.env_id)
+
+        def clean(episode: Any) -> Any:
+            arrays = ds.arrays(episode.name)
+            expert.reset()
+            actions = np.stack([np.asarray(expert({k: arrays[f"obs/{k}"][t] for k in OBS_KEYS}), np.float32)
+                                for t in range(len(episode.actions))])
+            return dataclasses.replace(episode, actions=actions)
+
+        return dataclasses.replace(demos, origin=demos.origin + " (actions relabelled by the expert)",
+                                   train=tuple(clean(e) for e in demos.train),
+                                   valid=tuple(clean(e) for e in demos.valid))
+
+
+def run(job: Job, results: pathlib.Path, steps: int) -> dict[str, Any]:
+    from fetch.learn import load
+    from fetch.learn.evaluate import evaluate
+    from fetch.learn.policies import KIND_DEFAULTS
+    from fetch.learn.train import TrainConfig, train
+
+    data = collected(results, job.task, job.recording, job.demos)
+    dataset: Any = relabelled(data) if job.recording == "dart" else data
+    policy = dict(POLICY_VARIANTS[job.policy])
+    policy = {**KIND_DEFAULTS.get(policy["kind"], {}), **policy}
+    config = TrainConfig(steps=steps, seed=job.seed, demos=job.demos)
+    start = time.perf_counter()
+    trained = train(dataset, results / "runs" / job.name, policy, config, log=lambda _: None, show_progress=False)
+    train_s = time.perf_counter() - start
+    start = time.perf_counter()
+    outcome = evaluate(load(trained.run), EPISODES)
+    return {**dataclasses.asdict(job), "steps": steps, "train_seconds": train_s,
+            "resumed_from": trained.resumed_from, "eval_seconds": time.perf_counter() - start,
+            "valid_loss": trained.valid_loss, "train_loss": trained.train_loss, **outcome.as_dict()}
+
+
+def write_json(path: pathlib.Path, value: Any) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "w", encoding="utf-8") as f:
+        json.dump(value, f, indent=1)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def load_results(results: pathlib.Path) -> list[dict[str, Any]]:
+    return [json.loads(p.read_text()) for p in sorted((results / "results").glob("*.json"))]
+
+
+def _cell(rows: list[dict[str, Any]]) -> str:
+    if not rows:
+        return ""
+    rates = [100 * r["success_rate"] for r in rows]
+    spread = f" ± {np.std(rates):.0f}" if len(rates) > 1 else ""
+    return f"{np.mean(rates):.0f}{spread} ({len(rates)})"
+
+
+def report(results: list[dict[str, Any]], steps: int) -> str:
+    """The markdown table of every result so far."""
+    def pick(**match: Any) -> list[dict[str, Any]]:
+        return [r for r in results if all(r[k] == v for k, v in match.items())]
+
+    lines = ["# Learning curves", "",
+             "Written by `benchmarks/learning_curves.py` (see its docstring); success % is `is_success` at step 50",
+             f"of {EPISODES} evaluation episodes on seeds from 1,000,000 up (none from the data), mean ± std over the",
+             f"training seeds that have finished (their count in brackets). Policy `mlp-chunk` (defaults of "
+             f"`gym-fetch train`, {steps} gradient steps), one thread, a machine of 2 cores shared with other work.",
+             "", "## 100 expert demos, every task (recorded as `gym-fetch collect --device expert` does)", "",
+             "| task | success % | mean steps to success | train [s] per run |", "|---|---|---|---|"]
+    for task in ALL_TASKS:
+        rows = pick(task=task, recording="stop", policy="mlp-chunk", demos=100)
+        length = f"{np.mean([r['mean_length'] for r in rows]):.1f}" if rows else ""
+        seconds = f"{np.mean([r['train_seconds'] for r in rows]):.0f}" if rows else ""
+        lines.append(f"| `{task}` | {_cell(rows)} | {length} | {seconds} |")
+    lines += ["", "## Success % against the number of demos (stop-at-success recording)", "",
+              "| task | " + " | ".join(str(n) for n in CURVE_DEMOS) + " |", "|---|" + "---|" * len(CURVE_DEMOS)]
+    for task in CURVE_TASKS:
+        cells = [_cell(pick(task=task, recording="stop", policy="mlp-chunk", demos=n)) for n in CURVE_DEMOS]
+        lines.append(f"| `{task}` | " + " | ".join(cells) + " |")
+    lines += ["", "## How the demos are recorded (100 demos)", "",
+              "stop: the attempt ends 10 steps after success (the collector's default); hold: "
+              "`--no-stop-on-success`, every demo runs the 50-step horizon; dart: as hold, the executed action "
+              f"perturbed by N(0, {DART_STD}) noise and the expert's clean action as the label.", "",
+              "| task | " + " | ".join(RECORDINGS) + " |", "|---|" + "---|" * len(RECORDINGS)]
+    for task in CURVE_TASKS:
+        cells = [_cell(pick(task=task, recording=rec, policy="mlp-chunk", demos=100)) for rec in RECORDINGS]
+        lines.append(f"| `{task}` | " + " | ".join(cells) + " |")
+    lines += ["", "## Policies (100 stop-at-success demos)", "",
+              "mlp-chunk: 10-action chunks with temporal ensembling; mlp: one action (plain BC); gru: recurrent.", "",
+              "| task | " + " | ".join(POLICY_VARIANTS) + " | train [s] per run |",
+              "|---|" + "---|" * (len(POLICY_VARIANTS) + 1)]
+    for task in ("PickPlace-v2", "Push-v2"):
+        cells = [_cell(pick(task=task, recording="stop", policy=p, demos=100)) for p in POLICY_VARIANTS]
+        seconds = ", ".join(f"{p} {np.mean([r['train_seconds'] for r in rows]):.0f}" for p in POLICY_VARIANTS
+                            if (rows := pick(task=task, recording="stop", policy=p, demos=100)))
+        lines.append(f"| `{task}` | " + " | ".join(cells) + f" | {seconds} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(results: list[dict[str, Any]], path: pathlib.Path) -> bool:
+    """Success against demos per curve task (mean and spread over seeds); False without matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=100)
+    for task in CURVE_TASKS:
+        xs, means, stds = [], [], []
+        for n in CURVE_DEMOS:
+            rates = [100 * r["success_rate"] for r in results if r["task"] == task and r["recording"] == "stop"
+                     and r["policy"] == "mlp-chunk" and r["demos"] == n]
+            if rates:
+                xs.append(n)
+                means.append(float(np.mean(rates)))
+                stds.append(float(np.std(rates)))
+        if xs:
+            ax.errorbar(xs, means, yerr=stds, marker="o", capsize=3, label=task)
+    ax.set_xscale("log")
+    ax.set_xticks(CURVE_DEMOS, [str(n) for n in CURVE_DEMOS])
+    ax.set_ylim(-2, 102)
+    ax.set_xlabel("expert demos (stop at success)")
+    ax.set_ylabel(f"success % ({EPISODES} episodes, mean of seeds)")
+    ax.axhline(80, color="grey", lw=0.8, ls=":")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8, loc="lower right")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.stem}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return True
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--results", default="/tmp/gym-fetch-learning-curves",
+                   help="directory of datasets, runs and one result file per run (default %(default)s)")
+    p.add_argument("--docs", default=str(pathlib.Path(__file__).resolve().parents[1] / "docs"),
+                   help="where learning_curves.md and images/learning_curves.png go (default: the repo's docs/)")
+    p.add_argument("--steps", type=int, default=None, help="gradient steps per run (default: gym-fetch train's)")
+    p.add_argument("--limit", type=int, default=0, help="stop after this many new runs (default 0: all)")
+    p.add_argument("--report-only", action="store_true", help="rewrite the table and plot from the results; no runs")
+    args = p.parse_args(argv)
+    import fetch  # noqa: F401  (registers the ids)
+    from fetch.learn.train import TrainConfig
+
+    steps = args.steps or TrainConfig().steps
+    results = pathlib.Path(args.results)
+    (results / "results").mkdir(parents=True, exist_ok=True)
+    docs = pathlib.Path(args.docs)
+    (docs / "images").mkdir(parents=True, exist_ok=True)
+    new = 0
+    for job in ([] if args.report_only else list(jobs())):
+        target = results / "results" / f"{job.name}.json"
+        if target.exists():
+            continue
+        if args.limit and new >= args.limit:
+            break
+        outcome = run(job, results, steps)
+        write_json(target, outcome)
+        new += 1
+        print(f"{job.name}: {100 * outcome['success_rate']:.0f}% (train {outcome['train_seconds']:.0f} s, "
+              f"eval {outcome['eval_seconds']:.0f} s)", flush=True)
+        _publish(results, docs, steps)
+    _publish(results, docs, steps)
+    return 0
+
+
+def _publish(results: pathlib.Path, docs: pathlib.Path, steps: int) -> None:
+    found = load_results(results)
+    text = report(found, steps)
+    tmp = docs / ".learning_curves.md.tmp"
+    tmp.write_text(text)
+    os.replace(tmp, docs / "learning_curves.md")
+    if not plot(found, docs / "images" / "learning_curves.png"):
+        print("matplotlib is not installed: no plot (pip install matplotlib)", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,121 @@
+"""`gym-fetch train` and `gym-fetch eval`: their flags and what they run (torch is imported only then)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+
+from fetch.errors import FetchError
+from fetch.learn import POLICY_KINDS, require_torch
+
+
+def add_train_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("dataset", help="a dataset directory (from gym-fetch collect) or file (e.g. from merge)")
+    p.add_argument("--out", required=True, metavar="RUN",
+                   help="the run directory: its checkpoint.pt is written atomically every --checkpoint-every steps; "
+                        "run the same command again to resume a run that was stopped")
+    p.add_argument("--policy", default="mlp-chunk", choices=POLICY_KINDS,
+                   help="mlp-chunk (default): an MLP predicting chunks of actions, ACT's temporal ensembling; "
+                        "gru: a recurrent policy (BC-RNN)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the initial weights and the batches (default 0)")
+    length = p.add_mutually_exclusive_group()
+    length.add_argument("--steps", type=int, default=None, help="gradient steps (default 5000)")
+    length.add_argument("--epochs", type=int, default=None,
+                        help="passes over the training examples, instead of --steps")
+    p.add_argument("--demos", type=int, default=0, help="train on the first N demos of mask/train (default 0: all)")
+    p.add_argument("--batch-size", type=int, default=256, help="examples per step (default 256)")
+    p.add_argument("--lr", type=float, default=1e-3, help="peak learning rate, cosine decay to 0 (default 1e-3)")
+    p.add_argument("--chunk", type=int, default=None, help="mlp-chunk: actions per prediction (default 10)")
+    p.add_argument("--seq-len", type=int, default=None, help="gru: training window [steps] (default 10)")
+    p.add_argument("--hidden", type=int, default=None, help="units per layer (default 256; gru 128)")
+    p.add_argument("--layers", type=int, default=None, help="hidden layers (default 2; gru 1)")
+    p.add_argument("--obs-noise", type=float, default=0.0,
+                   help="std of noise on the normalised observations while training (default 0)")
+    p.add_argument("--checkpoint-every", type=int, default=1000,
+                   help="steps between checkpoints and validation losses (default 1000)")
+    p.add_argument("--threads", type=int, default=1,
+                   help="torch threads (default 1; results are reproducible for a given count)")
+
+
+def run_train(args: argparse.Namespace) -> int:
+    require_torch()
+    from fetch.learn.data import load_demos
+    from fetch.learn.policies import KIND_DEFAULTS
+    from fetch.learn.train import TrainConfig, train
+
+    policy = {"kind": args.policy, **KIND_DEFAULTS.get(args.policy, {})}
+    for name in ("chunk", "seq_len", "hidden", "layers"):
+        if getattr(args, name) is not None:
+            policy[name] = getattr(args, name)
+    if args.policy == "gru" and args.chunk is not None:
+        raise FetchError("--chunk is for --policy mlp-chunk; gru predicts one action per step")
+    if args.policy == "mlp-chunk" and args.seq_len is not None:
+        raise FetchError("--seq-len is for --policy gru; mlp-chunk reads one observation")
+    demos = load_demos(args.dataset)
+    steps = args.steps if args.steps is not None else 5000
+    if args.epochs is not None:
+        if args.epochs < 1:
+            raise FetchError(f"--epochs must be a whole number >= 1, got {args.epochs}")
+        used = demos.train[:args.demos] if args.demos else demos.train
+        count = sum(len(e.actions) for e in used)
+        steps = args.epochs * max(1, count // max(1, min(args.batch_size, count)))
+    config = TrainConfig(steps=steps, batch_size=args.batch_size, lr=args.lr, obs_noise=args.obs_noise,
+                         seed=args.seed, demos=args.demos, checkpoint_every=args.checkpoint_every,
+                         threads=args.threads)
+    result = train(demos, args.out, policy, config)
+    valid = "none (no valid split)" if result.valid_loss is None else f"{result.valid_loss:.4f}"
+    resumed = f", resumed at step {result.resumed_from}" if result.resumed_from else ""
+    print(f"trained {args.policy} on {len(demos.train[:args.demos or None])} {demos.env_id} demos for {result.steps} "
+          f"steps{resumed}: train loss {result.train_loss:.4f}, valid loss {valid}; "
+          f"evaluate with: gym-fetch eval {args.out}")
+    return 0
+
+
+def add_eval_arguments(p: argparse.ArgumentParser) -> None:
+    from fetch.learn.evaluate import EVAL_SEED_START
+
+    p.add_argument("run_dir", metavar="RUN", help="a run directory from gym-fetch train")
+    p.add_argument("--episodes", type=int, default=100, help="episodes to run (default 100)")
+    p.add_argument("--envs", type=int, default=50, help="episodes stepped at once (default 50)")
+    p.add_argument("--seed-start", type=int, default=EVAL_SEED_START,
+                   help=f"evaluation seeds count up from here, skipping the dataset's (default {EVAL_SEED_START})")
+    p.add_argument("--video", default=None, metavar="DIR", help="also write mp4s of the first --videos episodes here")
+    p.add_argument("--videos", type=int, default=3, help="how many episodes --video records (default 3)")
+    p.add_argument("--camera", default="front", help="the videos' camera: front (default), side, behind or wrist")
+    p.add_argument("--json", default=None, metavar="FILE", help="also write the per-episode results as JSON")
+
+
+def run_eval(args: argparse.Namespace) -> int:
+    require_torch()
+    from fetch.learn.evaluate import evaluate, record_videos
+    from fetch.learn.runtime import load
+
+    if args.seed_start < 0:
+        raise FetchError(f"--seed-start must be a whole number >= 0, got {args.seed_start}")
+    if args.video is not None and args.videos < 1:
+        raise FetchError(f"--videos must be a whole number >= 1, got {args.videos}")
+    policy = load(args.run_dir)
+    if args.video is not None:
+        from fetch.dataset.frames import check_env_camera
+
+        check_env_camera(policy.env_id, policy.env_kwargs, args.camera)
+    result = evaluate(policy, args.episodes, envs=args.envs, seed_start=args.seed_start)
+    print(result.describe())
+    if args.json is not None:
+        pathlib.Path(args.json).write_text(json.dumps(result.as_dict(), indent=1))
+    if args.video is not None:
+        written = record_videos(policy, list(result.seeds[:args.videos]), args.video, camera=args.camera)
+        print(f"videos: {', '.join(str(p) for p in written)}")
+    return 0
+
+
+def add_learn_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """The `train` and `eval` subcommands."""
+    t = sub.add_parser("train", help="train a policy on a dataset (needs torch: pip install \"gym-fetch-v2[train]\")")
+    add_train_arguments(t)
+    t.set_defaults(run=run_train)
+    e = sub.add_parser("eval", help="run a trained policy on seeds its dataset never used: success with a 95%% "
+                                    "interval, mean episode length, videos")
+    add_eval_arguments(e)
+    e.set_defaults(run=run_eval)

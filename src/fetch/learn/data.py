@@ -1,0 +1,112 @@
+"""Training data from a dataset: per-demo observation and action arrays, the split, normalisation."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from fetch.errors import DatasetError
+
+OBS_KEYS = ("observation", "desired_goal")
+"""What a policy sees, concatenated in this order: the state and the goal (achieved_goal repeats
+the object's position, which `observation` already holds)."""
+
+
+def flat_obs(obs: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The policy's input from an observation dict: (..., D) float32, batched or not."""
+    return np.concatenate([np.asarray(obs[k], np.float32) for k in OBS_KEYS], axis=-1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Episode:
+    """One demo: T observations (before each step) and the T actions taken from them."""
+
+    name: str
+    seed: int
+    obs: np.ndarray
+    actions: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class Demos:
+    """The demos a policy learns from, split as the dataset's masks say."""
+
+    origin: str
+    """Where the demos came from (the dataset file), as a run records it."""
+    env_id: str
+    env_kwargs: dict[str, object]
+    train: tuple[Episode, ...]
+    valid: tuple[Episode, ...]
+    seeds: frozenset[int]
+    """Every reset seed in the dataset (all demos, kept failures too): evaluation avoids them."""
+
+    @property
+    def obs_size(self) -> int:
+        return int(self.train[0].obs.shape[1])
+
+
+def load_demos(path: str | os.PathLike[str]) -> Demos:
+    """The successful demos of a dataset (file or collector directory): `mask/train` to learn from and
+    `mask/valid` to validate on."""
+    from fetch.dataset import open_dataset
+    from fetch.dataset.reader import require_valid
+
+    with open_dataset(path) as ds:
+        require_valid(ds)
+        masks = ds.masks()
+        for split in ("train", "valid"):
+            if split not in masks:
+                raise DatasetError(f"{ds.path} has no mask/{split}; make one with `gym-fetch split {path}`")
+        seeds = frozenset(int(ds.attrs(n)["seed"]) for n in ds.demo_names)
+        train = _episodes(ds, masks["train"])
+        valid = _episodes(ds, masks["valid"])
+        env_id, env_kwargs = ds.env_id, dict(ds.env_kwargs)
+        where = ds.path.resolve()
+    if not train:
+        raise DatasetError(f"{where}: mask/train lists no demo with a step; a policy needs at least one")
+    return Demos(str(where), env_id, env_kwargs, train, valid, seeds)
+
+
+def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
+    from fetch.dataset.reader import Dataset
+
+    assert isinstance(ds, Dataset)
+    out = []
+    for name in names:
+        attrs = ds.attrs(name)
+        if int(attrs["num_samples"]) == 0:
+            continue
+        arrays = ds.arrays(name)
+        obs = flat_obs({k: arrays[f"obs/{k}"] for k in OBS_KEYS})
+        out.append(Episode(name, int(attrs["seed"]), obs, arrays["actions"].astype(np.float32)))
+    return tuple(out)
+
+
+@dataclasses.dataclass(frozen=True)
+class Normalizer:
+    """Per-dimension mean and std of observations; actions are already in [-1, 1] and stay so."""
+
+    mean: np.ndarray
+    std: np.ndarray
+
+    @classmethod
+    def fit(cls, episodes: Sequence[Episode]) -> Normalizer:
+        obs = np.concatenate([e.obs for e in episodes]).astype(np.float64)
+        # A constant dimension (e.g. a fixed goal height) keeps unit scale rather than dividing by ~0.
+        std = np.maximum(obs.std(axis=0), 1e-2)
+        return cls(obs.mean(axis=0).astype(np.float32), std.astype(np.float32))
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return ((obs - self.mean) / self.std).astype(np.float32)
+
+
+def chunk_targets(actions: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each step t of one demo, the actions t .. t+chunk-1 (T, chunk, 4) and which of them exist
+    (T, chunk) bool: past the demo's end the last action is repeated and masked out of the loss."""
+    steps = len(actions)
+    index = np.arange(steps)[:, None] + np.arange(chunk)[None, :]
+    valid = index < steps
+    return actions[np.minimum(index, steps - 1)], valid

@@ -1,0 +1,184 @@
+"""Training a policy on a dataset: deterministic under a seed, resumable from an atomic checkpoint."""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import math
+import os
+import pathlib
+import sys
+from typing import Any
+
+import numpy as np
+import torch
+
+from fetch.errors import FetchError
+from fetch.learn import checkpoint as ckpt
+from fetch.learn.data import Demos, Normalizer, load_demos
+from fetch.learn.policies import PolicyConfig, Samples, build, masked_loss, samples
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """How a policy is trained (stored in the checkpoint; a resumed run must ask for the same)."""
+
+    steps: int = 5000
+    """Gradient steps in all."""
+    batch_size: int = 256
+    lr: float = 1e-3
+    """[1] Adam's peak learning rate; it decays to 0 along a cosine over `steps`."""
+    weight_decay: float = 1e-4
+    obs_noise: float = 0.0
+    """Std of Gaussian noise added to the normalised observations while training (0: none)."""
+    seed: int = 0
+    demos: int = 0
+    """Train on the first `demos` of mask/train (0: all)."""
+    checkpoint_every: int = 1000
+    """[steps] between checkpoints (and validation losses); one is also written at the end."""
+    threads: int = 1
+    """torch's intra-op threads: results are reproducible for a given count."""
+
+    def __post_init__(self) -> None:
+        for name in ("steps", "batch_size", "checkpoint_every", "threads"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                raise FetchError(f"--{name.replace('_', '-')} must be a whole number >= 1, got {value!r}")
+        for name in ("seed", "demos"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 0:
+                raise FetchError(f"--{name} must be a whole number >= 0, got {value!r}")
+        for name in ("lr", "weight_decay", "obs_noise"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0) or (name == "lr" and value == 0):
+                raise FetchError(f"--{name.replace('_', '-')} must be a finite number "
+                                 f"{'> 0' if name == 'lr' else '>= 0'}, got {value!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainResult:
+    """What a finished run reports: where it is, its steps, and its last losses (None: no valid split)."""
+
+    run: pathlib.Path
+    steps: int
+    train_loss: float
+    valid_loss: float | None
+    resumed_from: int
+
+
+def learning_rate(config: TrainConfig, step: int) -> float:
+    return config.lr * 0.5 * (1.0 + math.cos(math.pi * step / config.steps))
+
+
+def batch_indices(config: TrainConfig, count: int, step: int) -> np.ndarray:
+    """The examples of gradient step `step`: epoch e is a permutation drawn from (seed, e), so any
+    step's batch follows from the step alone and a resumed run draws what an uninterrupted one would."""
+    size = min(config.batch_size, count)
+    per_epoch = count // size
+    epoch, index = divmod(step, per_epoch)
+    order = np.random.default_rng([config.seed, epoch]).permutation(count)
+    return order[index * size:(index + 1) * size]
+
+
+def _tensors(s: Samples) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    return torch.from_numpy(s.x), torch.from_numpy(s.y), torch.from_numpy(s.m)
+
+
+def validation_loss(policy: PolicyConfig, model: torch.nn.Module, valid: Samples | None) -> float | None:
+    if valid is None or len(valid) == 0:
+        return None
+    x, y, m = _tensors(valid)
+    model.eval()
+    with torch.no_grad():
+        total = sum(float(masked_loss(policy, model(x[i:i + 4096]), y[i:i + 4096], m[i:i + 4096]))
+                    * float(m[i:i + 4096].sum()) for i in range(0, len(x), 4096))
+    model.train()
+    return total / float(m.sum())
+
+
+def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], policy: dict[str, Any],
+          config: TrainConfig, *, log: Any = None, show_progress: bool = True) -> TrainResult:
+    """Train a policy of the settings `policy` (PolicyConfig fields but obs_size) on `dataset`, writing
+    `out/checkpoint.pt`. `dataset` is a dataset file or directory, or demos already loaded (and, say,
+    relabelled). A run that `out` already holds with the same settings is resumed from its last
+    checkpoint (one that finished is left as it is)."""
+    from fetch._progress import progress
+
+    say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
+    run = pathlib.Path(out)
+    demos = dataset if isinstance(dataset, Demos) else load_demos(dataset)
+    if config.demos:
+        if len(demos.train) < config.demos:
+            raise FetchError(f"--demos {config.demos}: {demos.origin} has only {len(demos.train)} demos in mask/train")
+        demos = dataclasses.replace(demos, train=demos.train[:config.demos])
+    policy_config = PolicyConfig(obs_size=demos.obs_size, **policy)
+    torch.set_num_threads(config.threads)
+    torch.use_deterministic_algorithms(True)
+    torch.manual_seed(config.seed)
+    norm = Normalizer.fit(demos.train)
+    model = build(policy_config)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    source = {"dataset": demos.origin, "env_id": demos.env_id,
+              "env_kwargs": json.dumps(demos.env_kwargs, sort_keys=True),
+              "train_demos": [e.name for e in demos.train]}
+    history: dict[str, list[float]] = {"step": [], "train_loss": [], "valid_loss": []}
+    start = 0
+    previous = ckpt.read(run) if ckpt.path(run).exists() else None
+    if previous is not None:
+        ckpt.require_same(run, previous, policy_config.as_dict(), dataclasses.asdict(config), source)
+        model.load_state_dict(previous["model"])
+        optimizer.load_state_dict(previous["optimizer"])
+        torch.set_rng_state(previous["rng"])
+        history = {k: list(v) for k, v in previous["history"].items()}
+        start = int(previous["step"])
+        if start < config.steps:
+            say(f"resuming {run} from step {start} of {config.steps}")
+    else:
+        run.mkdir(parents=True, exist_ok=True)
+
+    train_samples = samples(policy_config, demos.train, norm)
+    valid_samples = samples(policy_config, demos.valid, norm) if demos.valid else None
+    x, y, m = _tensors(train_samples)
+    running: list[float] = []
+
+    def save(step: int) -> None:
+        state = {"format": ckpt.FORMAT, "version": ckpt.VERSION, "policy": policy_config.as_dict(),
+                 "train": dataclasses.asdict(config), "source": source, "step": step,
+                 "norm": {"mean": torch.from_numpy(norm.mean), "std": torch.from_numpy(norm.std)},
+                 "seeds": torch.tensor(sorted(demos.seeds), dtype=torch.int64),
+                 "model": model.state_dict(), "optimizer": optimizer.state_dict(), "rng": torch.get_rng_state(),
+                 "history": history}
+        buffer = io.BytesIO()
+        torch.save(state, buffer)
+        ckpt.write(run, buffer.getvalue())
+
+    steps = range(start, config.steps)
+    for step in progress(steps, len(steps), f"train {policy_config.kind}", "steps") if show_progress else steps:
+        for group in optimizer.param_groups:
+            group["lr"] = learning_rate(config, step)
+        idx = torch.from_numpy(batch_indices(config, len(train_samples), step))
+        inputs = x[idx]
+        if config.obs_noise:
+            inputs = inputs + config.obs_noise * torch.randn_like(inputs)
+        loss = masked_loss(policy_config, model(inputs), y[idx], m[idx])
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        running.append(float(loss.detach()))
+        done = step + 1
+        if done % config.checkpoint_every == 0 or done == config.steps:
+            valid = validation_loss(policy_config, model, valid_samples)
+            history["step"].append(float(done))
+            history["train_loss"].append(float(np.mean(running)))
+            history["valid_loss"].append(math.nan if valid is None else valid)
+            running = []
+            save(done)
+            if not show_progress or not sys.stderr.isatty():
+                shown = "none (no valid split)" if valid is None else f"{valid:.4f}"
+                say(f"step {done}/{config.steps}: train loss {history['train_loss'][-1]:.4f}, valid loss {shown}")
+    if not history["step"]:  # steps was 0 left to do and nothing had been saved: cannot happen after a save
+        raise FetchError(f"{run}: no training step was taken")
+    last_valid = history["valid_loss"][-1]
+    return TrainResult(run, config.steps, history["train_loss"][-1],
+                       None if math.isnan(last_valid) else last_valid, start)

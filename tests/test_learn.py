@@ -1,0 +1,304 @@
+"""fetch.learn on real data: train, resume after a kill, load, act, evaluate on unseen seeds, the CLI."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+from collections.abc import Mapping
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from fetch.cli import main
+from fetch.errors import FetchError
+from fetch.learn.evaluate import eval_seeds, wilson
+
+TINY = ["--hidden", "32", "--batch-size", "64"]
+"""A small network: these tests check the pipeline, the benchmark checks what it learns."""
+
+
+@pytest.fixture(scope="module")
+def torch():  # noqa: ANN201
+    return pytest.importorskip("torch")
+
+
+@pytest.fixture(scope="module")
+def reach(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    """12 Reach-v2 expert demos (seeds 0-11): 11 in mask/train, 1 in mask/valid."""
+    out = tmp_path_factory.mktemp("learn") / "reach"
+    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "12", "--render", "none",
+                 "--max-steps", "50", "--out", str(out)]) == 0
+    return out
+
+
+def _train(dataset: pathlib.Path, out: pathlib.Path, *extra: str) -> int:
+    return main(["train", str(dataset), "--out", str(out), *TINY, *extra])
+
+
+def _weights(torch, run: pathlib.Path) -> dict:  # noqa: ANN001
+    return torch.load(run / "checkpoint.pt", weights_only=True)["model"]
+
+
+def _same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(bool((a[k] == b[k]).all()) for k in a)
+
+
+def test_a_trained_policy_loads_and_acts_on_one_or_a_batch(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    import fetch.learn
+
+    assert _train(reach, tmp_path / "run", "--steps", "200") == 0
+    policy = fetch.learn.load(tmp_path / "run")
+    assert policy.env_id == "Reach-v2" and policy.seeds == frozenset(range(12))
+    env = gym.make("Reach-v2")
+    obs, _ = env.reset(seed=123)
+    policy.reset()
+    action = policy(obs)
+    assert action.shape == (4,) and action.dtype == np.float32 and np.all(np.abs(action) <= 1)
+    batch = {k: np.stack([v, v, v]) for k, v in obs.items()}
+    policy.reset()
+    actions = policy(batch)
+    assert actions.shape == (3, 4)
+    np.testing.assert_allclose(actions[0], action, atol=1e-6)
+    with pytest.raises(FetchError, match="batches of 3"):
+        policy(obs)  # the batch changed without a reset
+    env.close()
+
+
+def test_the_checkpoint_holds_tensors_and_plain_values_only(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    assert _train(reach, tmp_path / "run", "--steps", "20", "--checkpoint-every", "10") == 0
+    state = torch.load(tmp_path / "run" / "checkpoint.pt", weights_only=True)
+    assert state["format"] == "gym-fetch-v2/policy" and state["step"] == 20
+    assert state["history"]["step"] == [10.0, 20.0] and len(state["history"]["valid_loss"]) == 2
+    assert not list((tmp_path / "run").glob(".*tmp")), "no temporary file is left behind"
+
+
+def test_the_same_seed_gives_the_same_weights_and_another_seed_others(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    for name, seed in (("a", "3"), ("b", "3"), ("c", "4")):
+        assert _train(reach, tmp_path / name, "--steps", "60", "--seed", seed) == 0
+    assert _same(_weights(torch, tmp_path / "a"), _weights(torch, tmp_path / "b"))
+    assert not _same(_weights(torch, tmp_path / "a"), _weights(torch, tmp_path / "c"))
+
+
+def test_a_run_killed_mid_training_resumes_to_the_uninterrupted_result(torch, reach: pathlib.Path,
+                                                                      tmp_path: pathlib.Path) -> None:  # noqa: ANN001
+    args = ["--steps", "1500", "--checkpoint-every", "100", "--seed", "1"]
+    assert _train(reach, tmp_path / "whole", *args) == 0
+    cmd = [sys.executable, "-m", "fetch.cli", "train", str(reach), "--out", str(tmp_path / "cut"), *TINY, *args]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    assert proc.stderr is not None
+    for line in proc.stderr:
+        if line.startswith("step 100/1500"):
+            proc.send_signal(signal.SIGKILL)  # no chance to clean up: only the atomic checkpoint remains
+            break
+    proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    cut = torch.load(tmp_path / "cut" / "checkpoint.pt", weights_only=True)
+    assert 100 <= cut["step"] < 1500, "the kill landed mid-training"
+    assert _train(reach, tmp_path / "cut", *args) == 0
+    assert _same(_weights(torch, tmp_path / "whole"), _weights(torch, tmp_path / "cut"))
+    whole = torch.load(tmp_path / "whole" / "checkpoint.pt", weights_only=True)
+    resumed = torch.load(tmp_path / "cut" / "checkpoint.pt", weights_only=True)
+    assert whole["history"] == resumed["history"]
+
+
+def test_resuming_with_other_settings_is_refused(torch, reach: pathlib.Path, tmp_path, capsys) -> None:  # noqa: ANN001
+    assert _train(reach, tmp_path / "run", "--steps", "20") == 0
+    capsys.readouterr()
+    assert _train(reach, tmp_path / "run", "--steps", "20", "--lr", "0.01") == 2
+    err = capsys.readouterr().err.strip()
+    assert "other training settings (lr differ)" in err and len(err.splitlines()) == 1
+
+
+def test_temporal_ensembling_averages_every_chunk_prediction_for_this_step(torch, reach: pathlib.Path,
+                                                                           tmp_path) -> None:  # noqa: ANN001
+    from fetch.learn.data import flat_obs
+    from fetch.learn.runtime import load
+
+    assert _train(reach, tmp_path / "run", "--steps", "50", "--chunk", "3") == 0
+    policy = load(tmp_path / "run")
+    env = gym.make("Reach-v2")
+    obs, _ = env.reset(seed=5)
+    policy.reset()
+    chunks, acted = [], []
+    for _ in range(4):
+        with torch.no_grad():
+            chunks.append(policy.model(torch.from_numpy(policy.normalizer(flat_obs(obs))[None])).numpy()[0])
+        acted.append(policy(obs))
+        obs, *_ = env.step(acted[-1])
+    env.close()
+    decay = policy.config.ensemble_decay
+    for t in range(4):
+        made = list(range(max(0, t - 2), t + 1))  # the chunks that predict step t, oldest first
+        weights = np.exp(-decay * np.arange(len(made)))
+        expected = sum(w * chunks[s][t - s] for w, s in zip(weights, made, strict=True)) / weights.sum()
+        np.testing.assert_allclose(acted[t], np.clip(expected, -1, 1), atol=1e-5)
+
+
+def test_a_recurrent_policy_trains_and_acts(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    from fetch.learn.runtime import load
+
+    assert _train(reach, tmp_path / "run", "--policy", "gru", "--steps", "30", "--seq-len", "4") == 0
+    policy = load(tmp_path / "run")
+    env = gym.make("Reach-v2")
+    obs, _ = env.reset(seed=0)
+    policy.reset()
+    first = [policy(obs) for _ in range(5)]  # the same observation: the hidden state makes actions differ,
+    assert not np.allclose(first[0], first[1])  # until the state restarts at seq_len
+    np.testing.assert_allclose(first[4], first[0], atol=1e-6)
+    env.close()
+
+
+def test_eval_runs_on_seeds_the_dataset_never_used(torch, reach: pathlib.Path, tmp_path, capsys) -> None:  # noqa: ANN001
+    from fetch.learn.evaluate import evaluate
+    from fetch.learn.runtime import load
+
+    assert _train(reach, tmp_path / "run", "--steps", "300") == 0
+    policy = load(tmp_path / "run")
+    result = evaluate(policy, 5, envs=2, seed_start=10)  # three waves, the last one short
+    assert result.seeds == (12, 13, 14, 15, 16), "the dataset's seeds 0-11 are skipped"
+    assert len(result.success) == 5 and all(1 <= n <= 50 for n in result.first_success)
+    assert all(n == 50 for n, ok in zip(result.first_success, result.ever, strict=True) if not ok)
+    capsys.readouterr()
+    assert main(["eval", str(tmp_path / "run"), "--episodes", "5", "--envs", "3", "--seed-start", "10",
+                 "--json", str(tmp_path / "eval.json")]) == 0
+    out = capsys.readouterr().out
+    assert "95% CI" in out and "mean episode length" in out
+    saved = json.loads((tmp_path / "eval.json").read_text())
+    assert saved["seeds"] == [12, 13, 14, 15, 16] and saved["success"] == list(result.success), \
+        "the same seeds give the same outcomes, however many envs step at once"
+
+
+def test_eval_writes_videos(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    pytest.importorskip("av")
+    assert _train(reach, tmp_path / "run", "--steps", "20") == 0
+    assert main(["eval", str(tmp_path / "run"), "--episodes", "2", "--video", str(tmp_path / "videos"),
+                 "--videos", "1"]) == 0
+    from fetch.dataset.video import read_video
+
+    (path,) = (tmp_path / "videos").glob("*.mp4")
+    frames, fps = read_video(path)
+    assert path.name == "Reach-v2_seed1000000.mp4" and len(frames) == 51 and fps == 25
+
+
+def test_eval_seeds_skip_the_excluded_ones() -> None:
+    assert eval_seeds(4, {0, 2, 3}, start=0) == [1, 4, 5, 6]
+    assert eval_seeds(0, set()) == []
+
+
+def test_the_wilson_interval_matches_published_values() -> None:
+    # Newcombe (1998), table I: 0/10 -> 0-0.2775; 10/10 -> 0.7225-1; 81/263 -> 0.2553-0.3662.
+    for (k, n), expected in (((0, 10), (0.0, 0.2775)), ((10, 10), (0.7225, 1.0)), ((81, 263), (0.2553, 0.3662))):
+        np.testing.assert_allclose(wilson(k, n), expected, atol=1e-4)
+
+
+def test_a_policy_drives_a_collection_session(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    from fetch.dataset import open_dataset
+    from fetch.learn.device import PolicyDevice
+    from fetch.teleop.session import CollectConfig, Session
+
+    assert _train(reach, tmp_path / "run", "--steps", "300") == 0
+    config = CollectConfig(env_id="Reach-v2", out=str(tmp_path / "demos"), episodes=1, max_steps=50,
+                           device="expert", render="none", keep_failures=True, seed=500)
+    env = gym.make("Reach-v2", max_episode_steps=50)
+    device = PolicyDevice(env, tmp_path / "run")
+    assert device.name == "policy"
+    Session(config, device, log=lambda _: None).run()
+    with open_dataset(tmp_path / "demos") as ds:
+        (name,) = ds.demo_names
+        assert int(ds.attrs(name)["num_samples"]) > 0
+    with pytest.raises(FetchError, match="trained on Reach-v2, not Push-v2"):
+        PolicyDevice(gym.make("Push-v2"), tmp_path / "run")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--policy", "gru", "--chunk", "3"], "--chunk is for --policy mlp-chunk"),
+    (["--demos", "50"], "has only 11 demos in mask/train"),
+    (["--steps", "0"], "--steps must be a whole number >= 1"),
+    (["--lr", "nan"], "--lr must be a finite number > 0"),
+    (["--epochs", "0"], "--epochs must be a whole number >= 1"),
+])
+def test_bad_training_arguments_get_one_line_errors(torch, reach, tmp_path, capsys, argv, message) -> None:  # noqa: ANN001
+    assert main(["train", str(reach), "--out", str(tmp_path / "run"), *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "run" / "checkpoint.pt").exists()
+
+
+def test_bad_inputs_get_one_line_errors(torch, reach, tmp_path, capsys) -> None:  # noqa: ANN001
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    (tmp_path / "empty").mkdir()
+    cases = [
+        (["train", str(tmp_path / "nothing"), "--out", str(tmp_path / "r")], "no such file"),
+        (["eval", str(tmp_path / "empty")], "is not a run directory"),
+        (["eval", str(tmp_path / "junk.pt")], "is not a readable policy checkpoint"),
+    ]
+    for argv, message in cases:
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1, err
+    assert _train(reach, tmp_path / "run", "--steps", "5") == 0
+    capsys.readouterr()
+    for argv, message in ((["--episodes", "0"], "--episodes must be a whole number >= 1"),
+                          (["--video", str(tmp_path), "--camera", "nose"], "unknown camera 'nose'")):
+        assert main(["eval", str(tmp_path / "run"), *argv]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1, err
+
+
+def test_a_checkpoint_with_pickled_code_is_refused(torch, tmp_path) -> None:  # noqa: ANN001
+    from fetch.learn.checkpoint import read
+
+    run = tmp_path / "run"
+    run.mkdir()
+    torch.save({"format": "gym-fetch-v2/policy", "hook": os.system}, run / "checkpoint.pt")
+    with pytest.raises(FetchError, match="not a readable policy checkpoint"):
+        read(run)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("torch") is not None, reason="torch is installed here")
+def test_without_torch_train_says_how_to_install_it(reach: pathlib.Path, tmp_path, capsys) -> None:  # noqa: ANN001
+    assert main(["train", str(reach), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith('pip install "gym-fetch-v2[train]"') and len(err.splitlines()) == 1
+
+
+class Steering:
+    """A person on the virtual pad steering the grip site to the goal; the real gamepad device reads the pad."""
+
+    name = "gamepad"
+
+    def __init__(self, pad, device) -> None:  # noqa: ANN001
+        self.pad, self.device = pad, device
+
+    def reset(self) -> None:
+        self.device.reset()
+
+    def poll(self, obs: Mapping[str, np.ndarray]):  # noqa: ANN201
+        x, y, z = np.clip((obs["desired_goal"] - obs["achieved_goal"]) / 0.05, -1, 1)
+        self.pad.set_stick(float(x), float(-y))  # SDL's y axis points down
+        self.pad.set_triggers(max(0.0, -float(z)), max(0.0, float(z)))
+        return self.device.poll(obs)
+
+    def close(self) -> None:
+        self.device.close()
+
+
+def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  # noqa: ANN001
+    """Demos recorded through SDL's game-controller path train a policy that then runs end to end."""
+    from fetch.dataset import open_dataset
+    from fetch.teleop.gamepad import GamepadConfig, GamepadDevice
+    from fetch.teleop.session import CollectConfig, Session
+
+    config = CollectConfig(env_id="Reach-v2", out=str(tmp_path / "human"), device="gamepad", render="none",
+                           control_hz=0, success_hold_steps=3, max_steps=100, episodes=4)
+    Session(config, Steering(pad, GamepadDevice(GamepadConfig(deadzone=0.02))), log=lambda _: None).run()
+    with open_dataset(tmp_path / "human") as ds:
+        assert len(ds.demo_names) == 4 and {ds.attrs(n)["device"] for n in ds.demo_names} == {"gamepad"}
+    assert _train(tmp_path / "human", tmp_path / "run", "--steps", "100") == 0
+    assert main(["eval", str(tmp_path / "run"), "--episodes", "4", "--envs", "4"]) == 0
