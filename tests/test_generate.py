@@ -108,13 +108,19 @@ def test_a_demo_that_never_grasps_is_not_complete() -> None:
 
 
 def test_frames_carry_points_over_with_their_heading() -> None:
-    """A point 10 cm ahead of a source frame lands 10 cm ahead of the new frame, along its heading."""
+    """A point 10 cm ahead of a source frame lands 10 cm ahead of the new frame, along its heading;
+    any point keeps its offset from the frame, turned by the change of heading."""
     src = Frame(np.array([1.0, 0.5, 0.4]), 0.0)
     new = Frame(np.array([1.3, 0.7, 0.45]), math.pi / 2)
-    ahead = np.array([[1.1, 0.5, 0.5]])
-    moved = from_frame(new, to_frame(src, ahead))
+    moved = from_frame(new, to_frame(src, np.array([[1.1, 0.5, 0.5]])))
     assert np.allclose(moved, [[1.3, 0.8, 0.55]])
-    assert np.allclose(to_frame(new, moved), to_frame(src, ahead))
+    src, new = Frame(np.array([1.0, 0.5, 0.4]), 0.3), Frame(np.array([1.2, 0.9, 0.4]), 1.2)
+    point = np.array([1.05, 0.62, 0.47])
+    moved = from_frame(new, to_frame(src, point))
+    c, s = math.cos(0.9), math.sin(0.9)
+    d = point - src.pos
+    assert np.allclose(moved - new.pos, [c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]])
+    assert np.allclose(to_frame(new, moved), to_frame(src, point))
 
 
 # -- generation -------------------------------------------------------------------------------------
@@ -132,6 +138,19 @@ def test_generated_dataset_validates_replays_exactly_and_labels_its_steps(serial
             recomputed = annotate(env, subtasks, arrays["states"])
             assert np.array_equal(arrays["subtasks"], recomputed.labels)
             assert set(arrays["subtasks"].tolist()) == {0, 1}  # grasped, then placed
+
+
+def test_generated_dataset_loads_in_robomimic_and_minari(serial: pathlib.Path, tmp_path: pathlib.Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    import minari
+
+    from robomimic_rules import assert_robomimic_loadable
+
+    assert_robomimic_loadable(serial / "demos.hdf5")
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    assert main(["export", str(serial), "--to", "minari", "--dataset-id", "gen/pick-place/generated-v0"]) == 0
+    loaded = minari.load_dataset("gen/pick-place/generated-v0")
+    assert loaded.total_episodes == 12
 
 
 def test_generated_demos_start_from_new_object_poses(source: pathlib.Path, serial: pathlib.Path) -> None:

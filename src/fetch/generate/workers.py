@@ -120,8 +120,14 @@ class RayCluster:
         except ImportError as e:
             raise FetchError('--ray needs Ray: pip install "gym-fetch-v2[ray]"') from e
         self.ray = ray
-        if not ray.is_initialized():
-            ray.init(address=address, log_to_driver=False, include_dashboard=False)
+        self.started = not ray.is_initialized()
+        if self.started:
+            try:
+                ray.init(address=address, log_to_driver=False, include_dashboard=False)
+            except (ConnectionError, RuntimeError, ValueError) as e:
+                first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+                raise FetchError(f"cannot join the Ray cluster at {address or 'a new local instance'} ({first}); "
+                                 "start one (`ray start --head`) or pass --ray local") from e
         self.workers = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
         actor = ray.remote(num_cpus=1)(_RayWorker)
         shared = ray.put(work)
@@ -135,6 +141,8 @@ class RayCluster:
     def close(self) -> None:
         for a in self.actors:
             self.ray.kill(a)
+        if self.started:
+            self.ray.shutdown()
 
 
 class _RayWorker:

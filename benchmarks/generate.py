@@ -1,0 +1,164 @@
+"""Demo generation, measured: success rate per task, successful demos per minute, 1 vs 2 workers.
+
+For each task, 10 source demos are recorded by the scripted expert and, separately, by an imperfect
+operator (the expert with Gaussian action noise, standing in for a person); from each set, 1000
+demos are generated with 2 workers. Then, on a few tasks, the same generation with 1 and with 2
+workers gives the scaling efficiency (demos/min with 2) / (2 x demos/min with 1).
+
+Resumable: every result is appended to `<out>/results.jsonl` as it is measured and skipped when the
+benchmark runs again (a generation stopped midway resumes where it was). Prints a table.
+
+    nice -n 10 python benchmarks/generate.py --out /tmp/bench-generate
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import time
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import fetch
+from fetch.experts import make_expert
+from fetch.generate import GenerateConfig, generate
+from fetch.teleop.devices import Command
+from fetch.teleop.session import CollectConfig, Session
+
+SCALING_TASKS = ("PickPlace-v2", "Bin-pick-v2", "Drawer-open-v2")
+
+
+class NoisyExpert:
+    """The expert with Gaussian noise (std `noise`) on every action: an imperfect operator."""
+
+    name = "noisy-expert"
+
+    def __init__(self, env: Any, noise: float, seed: int = 0) -> None:
+        self.expert = make_expert(env)
+        self.noise = noise
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self) -> None:
+        self.expert.reset()
+
+    def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
+        action = self.expert(obs) + self.rng.normal(0.0, self.noise, 4)
+        return Command(np.clip(action, -1.0, 1.0).astype(np.float32))
+
+    def close(self) -> None:
+        pass
+
+
+def record_sources(env_id: str, out: pathlib.Path, count: int, noise: float) -> None:
+    """`count` successful demos (resumes a partial directory)."""
+    config = CollectConfig(env_id=env_id, out=str(out), episodes=count, device="expert", render="none")
+    if (out / "demos.hdf5").exists():
+        from fetch.dataset import open_dataset
+
+        with open_dataset(out) as ds:
+            have = len(ds.demo_names)
+        if have >= count:
+            return
+        config = CollectConfig(env_id=env_id, out=str(out), episodes=count - have, device="expert", render="none")
+    env = gym.make(env_id, max_episode_steps=config.max_steps)
+    device = NoisyExpert(env, noise) if noise else make_expert_device(env)
+    summary = Session(config, device, env=env, log=lambda text: None).run()
+    if summary.error:
+        raise SystemExit(f"recording sources for {env_id} failed: {summary.error}")
+
+
+def make_expert_device(env: Any) -> Any:
+    from fetch.teleop.expert import ExpertDevice
+
+    return ExpertDevice(env)
+
+
+def load_results(path: pathlib.Path) -> dict[str, dict[str, Any]]:
+    if not path.exists():
+        return {}
+    return {row["key"]: row for row in map(json.loads, path.read_text().splitlines()) if row}
+
+
+def measure(key: str, results: dict[str, dict[str, Any]], path: pathlib.Path, source: pathlib.Path,
+            out: pathlib.Path, demos: int, workers: int) -> dict[str, Any]:
+    if key in results:
+        return results[key]
+    # Slide's low rate would take ~50 attempts per demo: stop at 3 per demo asked for (the rate is still measured).
+    summary = generate(GenerateConfig(source=str(source), out=str(out), demos=demos, seed=10_000, workers=workers,
+                                      max_attempts=3 * demos), log=lambda text: print(f"  {text}", flush=True))
+    from fetch.dataset import open_dataset
+
+    with open_dataset(out) as ds:
+        attempts = int(ds.data_attrs["attempts"])
+        total = len(ds.demo_names)
+    row = {"key": key, "demos": total, "attempts": attempts, "success": total / attempts,
+           "per_min": 60 * summary.saved / summary.seconds if summary.seconds else 0.0,
+           "run_demos": summary.saved, "seconds": summary.seconds, "workers": summary.workers,
+           "load": os.getloadavg()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    with path.open("a") as f:
+        f.write(json.dumps(row) + "\n")
+    results[key] = row
+    print(f"  {key}: {row['success']:.1%} success, {row['per_min']:.0f} demos/min, load {row['load']:.1f}",
+          flush=True)
+    return row
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", default="/tmp/gym-fetch-bench-generate")
+    p.add_argument("--tasks", default=",".join(fetch.ENV_IDS))
+    p.add_argument("--sources", type=int, default=10)
+    p.add_argument("--demos", type=int, default=1000)
+    p.add_argument("--noise", type=float, default=0.1, help="the imperfect operator's action noise std")
+    p.add_argument("--operators", default="expert,noisy")
+    p.add_argument("--scaling-demos", type=int, default=300)
+    args = p.parse_args()
+    root = pathlib.Path(args.out)
+    root.mkdir(parents=True, exist_ok=True)
+    path = root / "results.jsonl"
+    results = load_results(path)
+    tasks = args.tasks.split(",")
+    operators = args.operators.split(",")
+    print(f"machine: {os.cpu_count()} cores, load {os.getloadavg()}", flush=True)
+    for operator in operators:
+        for env_id in tasks:
+            source = root / f"src-{operator}-{env_id}"
+            record_sources(env_id, source, args.sources, args.noise if operator == "noisy" else 0.0)
+            print(f"{env_id} from {operator} sources", flush=True)
+            measure(f"{operator}/{env_id}/2", results, path, source, root / f"gen-{operator}-{env_id}", args.demos, 2)
+        if operator == "expert":
+            for env_id in [t for t in SCALING_TASKS if t in tasks]:
+                source = root / f"src-expert-{env_id}"
+                for workers in (1, 2):
+                    print(f"{env_id} scaling, {workers} worker(s)", flush=True)
+                    measure(f"scaling/{env_id}/{workers}", results, path, source,
+                            root / f"scale{workers}-{env_id}", args.scaling_demos, workers)
+    print_table(results, tasks, operators)
+
+
+def print_table(results: dict[str, dict[str, Any]], tasks: list[str], operators: list[str]) -> None:
+    print("\n| task | " + " | ".join(f"{o}: success | {o}: demos/min (2 workers)" for o in operators) + " |")
+    print("|---|" + "---|---|" * len(operators))
+    for env_id in tasks:
+        cells = []
+        for o in operators:
+            row = results.get(f"{o}/{env_id}/2")
+            cells += [f"{row['success']:.1%} ({row['demos']}/{row['attempts']})", f"{row['per_min']:.0f}"] if row \
+                else ["-", "-"]
+        print(f"| `{env_id}` | " + " | ".join(cells) + " |")
+    print("\n| task | demos/min, 1 worker | 2 workers | scaling efficiency | load (1-min) |")
+    print("|---|---|---|---|---|")
+    for env_id in SCALING_TASKS:
+        one, two = results.get(f"scaling/{env_id}/1"), results.get(f"scaling/{env_id}/2")
+        if one and two:
+            print(f"| `{env_id}` | {one['per_min']:.0f} | {two['per_min']:.0f} | "
+                  f"{two['per_min'] / (2 * one['per_min']):.2f} | {one['load']:.1f} / {two['load']:.1f} |")
+
+
+if __name__ == "__main__":
+    main()
