@@ -2,9 +2,10 @@
 
 `mujoco.batch.Batch` (mujoco >= 4.0) loads each world's mjSTATE_INTEGRATION row into an MjData,
 runs it on a pool of C threads without the GIL and saves the row back; it is bit-identical to one
-MjData per world at any thread count. Older mujoco has no such call (`mujoco.rollout` neither keeps
-the solver's warm start nor takes the mocap and controls as state, and `mj_step` holds the GIL
-there), so `SerialWorlds` runs the same calls one world after another: same results, one core.
+MjData per world at any thread count. Older mujoco has no such call: `mujoco.rollout` takes the
+mocap and controls per substep but returns no warm start (`qacc_warmstart`), so the next control step's
+solver would start elsewhere and differ in the last bits at once, and `mj_step` holds the GIL there.
+`SerialWorlds` then runs the same calls one world after another: same results, one core.
 """
 
 from __future__ import annotations
