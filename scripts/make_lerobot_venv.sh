@@ -14,13 +14,13 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv=${1:-.venv-lerobot}
-if ! ldconfig -p | grep -q libavformat.so; then
+if ! ldconfig -p | grep libavformat.so > /dev/null; then  # (grep -q would end the pipe early: pipefail)
     apt-get update -q
     DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
         libavcodec59 libavformat59 libavutil57 libswscale6 libswresample4 libavdevice59 libavfilter8
 fi
 python3 -m venv "$venv"
-"$venv/bin/pip" install -q torch==2.14.1 torchvision==0.29.1
+"$venv/bin/pip" install -q --no-compile torch==2.14.1 torchvision==0.29.1
 "$venv/bin/pip" install -q --no-deps lerobot==0.4.4 torchcodec==0.14.0
 "$venv/bin/pip" install -q "datasets>=4,<5" "huggingface-hub>=0.34.2,<0.36" "av>=15,<16" "packaging>=24.2,<26" \
     "accelerate>=1.10,<2" "draccus==0.10.0" "jsonlines>=4,<5" "deepdiff>=7.0.1,<9" "termcolor>=2.4,<4" \
