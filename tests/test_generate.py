@@ -275,3 +275,15 @@ def test_a_source_without_usable_demos_is_refused(tmp_path: pathlib.Path, capsys
 def test_gives_up_after_max_attempts(source: pathlib.Path, tmp_path: pathlib.Path) -> None:
     """No attempt can succeed in 3 steps: the run stops at --max-attempts with a non-zero exit."""
     assert main(gen_argv(source, tmp_path / "x", 2, "--workers", "1", "--max-steps", "3", "--max-attempts", "5")) == 1
+
+
+def test_subtasks_command_prints_each_demos_segments(source: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["subtasks", str(source)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "PickPlace-v2: subtasks grasp, place"
+    env = gym.make("PickPlace-v2").unwrapped
+    with open_dataset(source) as ds:
+        for line, name in zip(lines[1:], ds.demo_names, strict=True):
+            (g0, g1), (p0, p1) = annotate(env, task_class("PickPlace-v2").subtasks, ds.arrays(name)["states"]).bounds()
+            assert line == f"{name}: grasp {g0}-{g1 - 1}, place {p0}-{p1 - 1}"
+            assert g0 == 0 and p0 == g1 and 0 < g1 < p1

@@ -13,6 +13,7 @@ import dataclasses
 import itertools
 import multiprocessing
 import os
+import signal
 from collections.abc import Iterator
 from typing import Any, Protocol
 
@@ -73,6 +74,8 @@ _worker: Generator | None = None
 
 def _init_worker(work: Work, nice: int) -> None:
     global _worker
+    # Ctrl-C reaches the whole process group: the driver stops the pool and finishes the saves.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     if nice:
         os.nice(nice)
     _worker = work.generator()
