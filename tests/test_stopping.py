@@ -78,11 +78,11 @@ def test_a_headless_gamepad_session_stops_on_sigterm(tmp_path: pathlib.Path) -> 
     pytest.importorskip("pygame")
     proc = subprocess.Popen([sys.executable, "-u", str(SCRIPTS / "pad_session.py"), str(tmp_path / "demos")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert proc.stdout is not None
-    for line in proc.stdout:
-        if line.startswith("pad ready"):
+    assert proc.stderr is not None
+    for line in proc.stderr:  # the collector says so once its session is built and about to run
+        if line.startswith("collecting "):
             break
-    subprocess.run(["sleep", "2"])  # the collector starts and runs its first attempt (500 steps at 25 Hz)
+    subprocess.run(["sleep", "1"])  # into its first attempt (500 steps at 25 Hz)
     proc.send_signal(signal.SIGTERM)
     try:
         stdout, stderr = proc.communicate(timeout=30)

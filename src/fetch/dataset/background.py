@@ -21,12 +21,24 @@ MAX_QUEUED = 8
 the writer fall 12 demos behind, and a SIGKILL then lost them all (each is an attempt of a person)."""
 
 
+IDLE_PUBLISH = 0.5
+"""[s] a writer with saved but unpublished demos publishes them once no demo has come for this long
+(a person between attempts), whatever `_publish_due` says."""
+
+_FLUSH = ("", None)
+"""Queued by `flush`: publish what is saved."""
+
+
 class BackgroundWriter:
     """Saves demos from a thread, so committing never stalls the control loop; one per directory.
 
-    `commit` numbers a demo, queues it and returns at once; `_save` (a subclass's) writes it and
-    `on_saved(name, demo)` is called from the writing thread once it is durable. A failure stops
-    further saving; the next `commit` and `close` raise it. Attempts are counted across sessions.
+    `commit` numbers a demo, queues it and returns at once; `_save` (a subclass's) makes it durable
+    and `_publish` makes saved demos part of the dataset (the index that lists them), when
+    `_publish_due` says so, when no demo has come for `IDLE_PUBLISH`, on `flush` and on `close`;
+    `on_saved(name, demo)` is called from the writing thread for each demo once it is published,
+    and `saved` counts them. Batching the index keeps a commit's cost independent of the dataset's
+    size. A failure stops further saving; the next `commit` and `close` raise it. Attempts are
+    counted across sessions.
     """
 
     def __init__(self, out_dir: str | os.PathLike[str], on_saved: Callable[[str, Demo], None] | None) -> None:
@@ -43,7 +55,8 @@ class BackgroundWriter:
         self._next_index = 0
         self.error: BaseException | None = None
         self._pending: list[str] = []
-        self._queue: queue.Queue[tuple[str, Demo] | None] = queue.Queue(MAX_QUEUED)
+        self._queue: queue.Queue[tuple[str, Demo | None] | None] = queue.Queue(MAX_QUEUED)
+        self._unpublished: list[tuple[str, Demo]] = []
         self.most_behind = 0
         """the most demos that were ever waiting to be saved."""
         self._thread = threading.Thread(target=self._run, name="fetch-dataset-writer", daemon=True)
@@ -88,12 +101,19 @@ class BackgroundWriter:
             if self.error is None:
                 self._complete_safely(name, None)
         while True:
-            item = self._queue.get()
             try:
-                if item is None:
-                    return
-                if self.error is None:
+                item = self._queue.get(timeout=IDLE_PUBLISH if self._unpublished else None)
+            except queue.Empty:
+                self._publish_safely()
+                continue
+            try:
+                if item is None or item is _FLUSH:
+                    self._publish_safely()
+                    if item is None:
+                        return
+                elif self.error is None:
                     name, demo = item
+                    assert demo is not None
                     try:
                         self._save(name, demo)
                     except OSError as e:
@@ -102,12 +122,36 @@ class BackgroundWriter:
                     except Exception as e:  # a bug must not end the thread silently
                         self.error = e
                         continue
-                    self.saved += 1
-                    if self.on_saved is not None:
-                        self.on_saved(name, demo)
-                    self._complete_safely(name, demo)
+                    self._unpublished.append((name, demo))
+                    if self._publish_due(len(self._unpublished)):
+                        self._publish_safely()
             finally:
                 self._queue.task_done()
+
+    def _publish_safely(self) -> None:
+        batch, self._unpublished = self._unpublished, []
+        if not batch or self.error is not None:
+            return
+        try:
+            self._publish([name for name, _ in batch])
+        except OSError as e:
+            self.error = DatasetError(self._describe(batch[0][0], e))
+            return
+        except Exception as e:
+            self.error = e
+            return
+        for name, demo in batch:
+            self.saved += 1
+            if self.on_saved is not None:
+                self.on_saved(name, demo)
+            self._complete_safely(name, demo)
+
+    def _publish_due(self, unpublished: int) -> bool:
+        """Whether to publish the `unpublished` saved demos now (default: each at once)."""
+        return True
+
+    def _publish(self, names: list[str]) -> None:
+        """Make the saved demos `names` part of the dataset (default: saving did)."""
 
     def _complete_safely(self, name: str, demo: Demo | None) -> None:
         try:
@@ -134,7 +178,8 @@ class BackgroundWriter:
         """Called by `close` after the last save (e.g. to record the attempt count)."""
 
     def flush(self) -> None:
-        """Wait until every committed demo is on disk (or the writer failed)."""
+        """Wait until every committed demo is on disk and published (or the writer failed)."""
+        self._queue.put(_FLUSH)
         self._queue.join()
 
     def close(self) -> None:
