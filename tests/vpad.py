@@ -129,3 +129,56 @@ class VirtualPad:
 
     def close(self) -> None:
         self.detach()
+
+
+class ExpertOnPad:
+    """A stand-in for a person with a pad: the task's expert decides, the virtual pad's stick,
+    triggers and buttons carry it, and the real `GamepadDevice` reads them back, so a demo made
+    this way took the whole path a person's does (SDL, dead zone, binary gripper, precision mode).
+
+    Small motions are made as a person makes them, with RB held (precision) and the stick pushed
+    further; the gripper is toggled with X when the expert wants it the other way. `noise` adds
+    Gaussian noise to the stick and triggers (a shaky hand). Use it as a collection `Device`.
+    """
+
+    name = "gamepad"
+
+    def __init__(self, pad: VirtualPad, device: object, expert: object, noise: float = 0.0,
+                 seed: int = 0) -> None:
+        import numpy as np
+
+        self.pad, self.device, self.expert = pad, device, expert
+        self.noise = noise
+        self.rng = np.random.default_rng(seed)
+        self._pressed: set[str] = set()
+
+    def reset(self) -> None:
+        self.device.reset()  # type: ignore[attr-defined]
+        self.expert.reset()  # type: ignore[attr-defined]
+
+    def poll(self, obs: object) -> object:
+        import numpy as np
+
+        released = self._pressed - {"rightshoulder"}
+        for button in released:
+            self.pad.release(button)
+        self._pressed -= released
+        action = np.asarray(self.expert(obs), dtype=np.float64)  # type: ignore[operator]
+        move = np.clip(action[:3] + self.rng.normal(0.0, self.noise, 3), -1.0, 1.0) if self.noise else action[:3]
+        scale = self.device.config.precision_scale  # type: ignore[attr-defined]
+        fine = float(np.abs(move).max()) < scale
+        if fine != ("rightshoulder" in self._pressed):
+            (self.pad.press if fine else self.pad.release)("rightshoulder")
+            self._pressed ^= {"rightshoulder"}
+        x, y, z = np.clip(move / scale, -1.0, 1.0) if fine else move
+        self.pad.set_stick(float(x), float(-y))  # SDL's stick y points down
+        self.pad.set_triggers(max(0.0, -float(z)), max(0.0, float(z)))
+        if (action[3] < 0) != self.device.mapper.gripper_closed and not released & {"x"}:  # type: ignore[attr-defined]
+            self.pad.press("x")  # a toggle; pressed again only after a tick released
+            self._pressed.add("x")
+        return self.device.poll(obs)  # type: ignore[attr-defined]
+
+    def close(self) -> None:
+        for button in self._pressed:
+            self.pad.release(button)
+        self.device.close()  # type: ignore[attr-defined]

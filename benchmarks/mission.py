@@ -1,0 +1,107 @@
+"""The measure of the whole tool: ten demonstrations with a pad, then a policy that solves the task.
+
+    .venv-train/bin/python benchmarks/mission.py [--env PickPlace-v2] [--demos 10] [--generated 1000]
+        [--noise 0.1] [--workers 2] [--dir /tmp/mission]
+
+1. teleop: 10 demos through the real gamepad path (SDL's virtual pad, the real `GamepadDevice` and
+   collector), driven by a stand-in for a person (`tests/vpad.ExpertOnPad`: the expert's intent,
+   a shaky hand of `--noise`, precision mode for small moves, X to toggle the gripper);
+2. `gym-fetch generate` multiplies them into `--generated` demos;
+3. `gym-fetch train` with its defaults;
+4. `gym-fetch eval --episodes 100` on seeds disjoint from the data's.
+Each stage is skipped when its output exists (run again after an interruption). Prints the time of
+each stage and the success with its 95 % interval. Bar: >= 90 % within 30 minutes on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import platform
+import subprocess
+import sys
+import time
+
+import mujoco
+
+HERE = pathlib.Path(__file__).resolve().parent
+
+
+def teleop(env_id: str, out: pathlib.Path, demos: int, noise: float) -> tuple[float, float]:
+    """([s] wall time, [s] what a person at 25 Hz would have spent steering)."""
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    sys.path.insert(0, str(HERE.parent / "tests"))
+    import fetch  # noqa: F401
+    import vpad
+    from fetch.experts import make_expert
+    from fetch.teleop.gamepad import GamepadDevice
+    from fetch.teleop.session import CollectConfig, Session, make_env
+
+    vpad.init_headless()
+    pad = vpad.VirtualPad()
+    config = CollectConfig(env_id=env_id, out=str(out), episodes=demos, device="gamepad", render="none",
+                           control_hz=0, max_steps=150)
+    env = make_env(config)
+    operator = vpad.ExpertOnPad(pad, GamepadDevice(), make_expert(env), noise=noise)
+    start = time.perf_counter()
+    summary = Session(config, operator, env=env, log=lambda text: None).run()
+    steps = sum(a.steps for a in summary.attempts)
+    print(f"  teleop: {summary.describe()}")
+    return time.perf_counter() - start, steps * env.unwrapped.dt
+
+
+def gym_fetch(*args: str) -> float:
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "fetch.cli", *args], check=True)
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="PickPlace-v2")
+    parser.add_argument("--demos", type=int, default=10)
+    parser.add_argument("--generated", type=int, default=1000)
+    parser.add_argument("--noise", type=float, default=0.1)
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--dir", default="/tmp/mission")
+    args = parser.parse_args()
+    root = pathlib.Path(args.dir) / args.env
+    root.mkdir(parents=True, exist_ok=True)
+    timing_file = root / "timing.json"
+    timing = json.loads(timing_file.read_text()) if timing_file.exists() else {}
+    human, generated, run, result = root / "human", root / "generated", root / "run", root / "eval.json"
+    print(f"{platform.node()}: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}, mujoco {mujoco.__version__}; "
+          f"{args.env}, {args.demos} pad demos -> {args.generated} generated -> train -> eval {args.episodes}")
+    if "teleop" not in timing:
+        timing["teleop"], timing["person"] = teleop(args.env, human, args.demos, args.noise)
+        timing_file.write_text(json.dumps(timing))
+    if "generate" not in timing:
+        timing["generate"] = gym_fetch("generate", "--source", str(human), "--out", str(generated),
+                                       "--demos", str(args.generated), "--workers", str(args.workers))
+        timing_file.write_text(json.dumps(timing))
+    if "train" not in timing:
+        timing["train"] = gym_fetch("train", str(generated), "--out", str(run))
+        timing_file.write_text(json.dumps(timing))
+    if "eval" not in timing:
+        timing["eval"] = gym_fetch("eval", str(run), "--episodes", str(args.episodes), "--json", str(result))
+        timing_file.write_text(json.dumps(timing))
+    outcome = json.loads(result.read_text())
+    compute = timing["generate"] + timing["train"] + timing["eval"]
+    print("\n| stage | wall time |")
+    print("|---|---|")
+    print(f"| {args.demos} pad demos (a person at 25 Hz: {timing['person']:.0f} s of steering) | "
+          f"{timing['teleop']:.0f} s |")
+    for stage in ("generate", "train", "eval"):
+        print(f"| {stage} | {timing[stage]:.0f} s |")
+    print(f"| generate + train + eval | {compute / 60:.1f} min |")
+    lo, hi = outcome["ci95"]
+    print(f"\nsuccess {100 * outcome['success_rate']:.0f} % (95 % interval {100 * lo:.0f}-{100 * hi:.0f} %) over "
+          f"{outcome['episodes']} episodes, mean length {outcome['mean_length']:.1f}; "
+          f"bar (>= 90 % within 30 min): {'met' if outcome['success_rate'] >= 0.9 and compute <= 1800 else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main()
