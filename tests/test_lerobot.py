@@ -242,3 +242,16 @@ def test_a_killed_export_leaves_nothing_or_the_old_dataset(exported: pathlib.Pat
     assert export(reach_demos, target, "--force", "--cameras", "none") == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
     assert json.loads((target / "meta/info.json").read_text())["video_path"] is None
+
+
+def test_image_stats_from_pixel_counts_are_numpys() -> None:
+    rng = np.random.default_rng(0)
+    frames = rng.integers(0, 256, (7, 9, 11, 3), dtype=np.uint8)
+    frames[..., 2] = rng.integers(30, 40, (7, 9, 11))  # a narrow channel: quantiles between few values
+    got = lerobot.image_stats(lerobot.pixel_counts(frames), len(frames))
+    pixels = frames.reshape(-1, 3).astype(np.float64) / 255
+    want = {"min": pixels.min(0), "max": pixels.max(0), "mean": pixels.mean(0), "std": pixels.std(0)}
+    want |= {f"q{round(q * 100):02d}": np.quantile(pixels, q, axis=0) for q in lerobot.QUANTILES}
+    for key, value in want.items():
+        assert np.allclose(np.reshape(got[key], 3), value, rtol=0, atol=1e-12), key
+    assert got["count"] == [7] and np.shape(got["mean"]) == (3, 1, 1)

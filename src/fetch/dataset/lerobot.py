@@ -11,6 +11,7 @@ rendered from the saved states.
 
 from __future__ import annotations
 
+import collections
 import math
 import os
 import pathlib
@@ -147,12 +148,32 @@ def feature_stats(values: np.ndarray) -> dict[str, list[Any]]:
     return out
 
 
-def image_stats(frames: np.ndarray) -> dict[str, list[Any]]:
-    """Per-channel statistics of (N, H, W, 3) uint8 frames in [0, 1], each (3, 1, 1) as LeRobot keeps them."""
-    pixels = frames.reshape(-1, 3).astype(np.float64) / 255.0
-    flat = feature_stats(pixels)
-    out: dict[str, list[Any]] = {k: [[[v]] for v in values] for k, values in flat.items() if k != "count"}
-    out["count"] = [len(frames)]
+def pixel_counts(frames: np.ndarray) -> np.ndarray:
+    """How often each value 0-255 occurs in each channel of (N, H, W, 3) uint8 frames: (3, 256)."""
+    channels = frames.reshape(-1, 3)
+    return np.stack([np.bincount(channels[:, c], minlength=256) for c in range(3)])
+
+
+def image_stats(counts: np.ndarray, images: int) -> dict[str, list[Any]]:
+    """Per-channel statistics in [0, 1] of the pixels `pixel_counts` counted in `images` frames, each
+    (3, 1, 1) as LeRobot keeps them; exact (the quantiles are numpy's linear ones) from the counts."""
+    values = np.arange(256) / 255.0
+    stats: dict[str, list[float]] = collections.defaultdict(list)
+    for row in counts:
+        n = int(row.sum())
+        mean = float(row @ values) / n
+        stats["min"].append(float(values[np.flatnonzero(row)[0]]))
+        stats["max"].append(float(values[np.flatnonzero(row)[-1]]))
+        stats["mean"].append(mean)
+        stats["std"].append(float(np.sqrt(max(0.0, float(row @ values**2) / n - mean**2))))
+        ends = np.cumsum(row)  # the order statistics k < ends[v] have value v
+        for q in QUANTILES:
+            position = q * (n - 1)
+            below, above = np.floor(position), np.ceil(position)
+            low, high = (values[np.searchsorted(ends, k, side="right")] for k in (below, above))
+            stats[f"q{round(q * 100):02d}"].append(float(low + (position - below) * (high - low)))
+    out: dict[str, list[Any]] = {k: [[[v]] for v in channel] for k, channel in stats.items()}
+    out["count"] = [images]
     return out
 
 

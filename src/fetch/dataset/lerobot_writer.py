@@ -154,7 +154,8 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
     writer: Any = None
     episodes: list[dict[str, Any]] = []
     columns_all: dict[str, list[np.ndarray]] = collections.defaultdict(list)
-    image_samples: dict[str, list[np.ndarray]] = collections.defaultdict(list)
+    pixels = {camera: np.zeros((3, 256), np.int64) for camera in cameras}
+    sampled = 0
     frames = 0
     try:
         rendered = _rendered(ds, names, cameras, size, workers)
@@ -182,10 +183,13 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
             for key, values in columns.items():
                 columns_all[key].append(values)
                 row.update({f"stats/{key}/{k}": v for k, v in lerobot.feature_stats(values).items()})
+            rows = lerobot.sample_rows(length)
+            sampled += len(rows)
             for camera in cameras:
-                sample = images[camera][lerobot.sample_rows(length)]
-                image_samples[camera].append(sample)
-                row.update({f"stats/{video_key(camera)}/{k}": v for k, v in lerobot.image_stats(sample).items()})
+                counts = lerobot.pixel_counts(images[camera][rows])
+                pixels[camera] += counts
+                episode_stats = lerobot.image_stats(counts, len(rows))
+                row.update({f"stats/{video_key(camera)}/{k}": v for k, v in episode_stats.items()})
             attrs = chosen[name]
             row.update({"meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0, "gym_fetch/demo": name,
                         "gym_fetch/seed": int(attrs["seed"]), "gym_fetch/device": str(attrs.get("device", "")),
@@ -198,7 +202,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
         for video in videos.values():
             video.close()
     stats = {key: lerobot.feature_stats(np.concatenate(parts)) for key, parts in columns_all.items()}
-    stats.update({video_key(c): lerobot.image_stats(np.concatenate(image_samples[c])) for c in cameras})
+    stats.update({video_key(c): lerobot.image_stats(pixels[c], sampled) for c in cameras})
     info = lerobot.features(obs_layout, cameras, size, _video_info(av, root, cameras, fps))
     _write_meta(pa, pq, root, episodes, task, stats, info, frames, fps, cameras)
     _write_card(root, repo_id, ds, len(episodes), frames, task)
