@@ -6,9 +6,10 @@
 
 Every cell counts world-steps per second (N x vector steps / wall time) under uniform random actions,
 with autoreset at the 50-step horizon (the single env is reset every 50 steps, as the others). For
-each N all four are built once, then measured in short turns (`--seconds` each, `--rounds` times) and
-the median kept, so that a change of load on a shared machine hits every column alike; the load
-average before and after is printed. Ratios are to the single env measured in the same turns. The
+each N all four are built once, then measured in short turns (`--seconds` each, `--rounds` times), so
+that a change of load on a shared machine hits every column alike; the load average before and after is
+printed. Rates are medians over the turns; a ratio is the median over the rounds of that round's rate
+divided by the single env's rate in the same round (paired, so a loaded second hits both). The
 CPU column is CPU time per world-step of this process (all its threads): how much work a step costs,
 whatever the load; it leaves out AsyncVectorEnv's worker processes.
 """
@@ -87,17 +88,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", default="PickPlace-v2", choices=fetch.ENV_IDS)
     parser.add_argument("--ns", default="1,2,8,32,128", help="numbers of worlds, comma-separated")
-    parser.add_argument("--seconds", type=float, default=0.5, help="length of one turn [s]")
-    parser.add_argument("--rounds", type=int, default=8, help="turns of each backend; the median is kept")
+    parser.add_argument("--seconds", type=float, default=0.25, help="length of one turn [s]")
+    parser.add_argument("--rounds", type=int, default=16, help="turns of each backend; medians are kept")
     parser.add_argument("--async-max", type=int, default=32,
                         help="largest N for AsyncVectorEnv (one process per world, ~110 MB each)")
     parser.add_argument("--nthread", type=int, default=0, help="FetchVectorEnv's C threads (0: every CPU)")
-    parser.add_argument("--quick", action="store_true", help="N = 1, 2, 8; 4 rounds")
+    parser.add_argument("--quick", action="store_true", help="N = 1, 2, 8; 6 rounds")
     parser.add_argument("--out", type=pathlib.Path, help="JSON file of measured Ns (written after each)")
     parser.add_argument("--resume", action="store_true", help="keep the Ns already in --out")
     args = parser.parse_args(argv)
     if args.quick:
-        args.ns, args.rounds = "1,2,8", 4
+        args.ns, args.rounds = "1,2,8", 6
     ns = [int(x) for x in args.ns.split(",")]
     cells: dict[str, dict[str, list[float]]] = {}
     if args.resume and args.out and args.out.exists():
@@ -129,19 +130,20 @@ def main(argv: list[str] | None = None) -> int:
     load_after = _load()
 
     print(f"\n{args.env}, world-steps per second (median of {args.rounds} turns of {args.seconds} s; in brackets "
-          f"the ratio to the single env of the same turns); load average {load_before} before, {load_after} after\n")
+          f"the median ratio to the single env of the same round); load average {load_before} before, "
+          f"{load_after} after\n")
     print("| N | single env | SyncVectorEnv | AsyncVectorEnv | FetchVectorEnv | CPU µs/world-step: single / ours |")
     print("|---|---|---|---|---|---|")
     for n in ns:
         cell = cells[str(n)]
         single = statistics.median(cell["single/rate"])
 
-        def show(kind: str, cell: dict[str, list[float]] = cell, single: float = single) -> str:
+        def show(kind: str, cell: dict[str, list[float]] = cell) -> str:
             values = cell.get(f"{kind}/rate")
             if not values:
                 return "-"
-            rate = statistics.median(values)
-            return f"{rate:,.0f} ({rate / single:.2f}x)"
+            ratio = statistics.median(v / s for v, s in zip(values, cell["single/rate"], strict=True))
+            return f"{statistics.median(values):,.0f} ({ratio:.2f}x)"
 
         cpu = f"{statistics.median(cell['single/cpu']):.0f} / {statistics.median(cell['ours/cpu']):.0f}"
         print(f"| {n} | {single:,.0f} | {show('sync')} | {show('async')} | {show('ours')} | {cpu} |")
