@@ -255,3 +255,19 @@ def test_image_stats_from_pixel_counts_are_numpys() -> None:
     for key, value in want.items():
         assert np.allclose(np.reshape(got[key], 3), value, rtol=0, atol=1e-12), key
     assert got["count"] == [7] and np.shape(got["mean"]) == (3, 1, 1)
+
+
+def test_an_invalid_dataset_is_refused(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    import h5py
+
+    copy = tmp_path / "demos"
+    shutil.copytree(reach_demos, copy)
+    with open_dataset(copy) as ds:
+        path, group = ds.demo_file("demo_1")
+    with h5py.File(path, "r+") as f:
+        f[group]["actions"][0, 0] = np.nan
+    assert export(copy, tmp_path / "ds") == 2
+    err = capsys.readouterr().err
+    assert "demo_1: actions hold NaN" in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["demos"]

@@ -146,3 +146,16 @@ def test_page_in_headless_chromium(page: pathlib.Path, tmp_path: pathlib.Path) -
         assert browser.errors() == []
     finally:
         browser.close()
+
+
+def test_a_demo_that_cannot_be_read_is_a_row_without_video(reach_demos: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    copy = tmp_path / "demos"
+    shutil.copytree(reach_demos, copy)
+    with open_dataset(copy) as ds:
+        path, _ = ds.demo_file("demo_0")
+    path.unlink()
+    assert main(["view", str(copy), "--out", str(tmp_path / "r"), "--size", str(SIZE)]) == 0
+    rows = {d["name"]: d for d in summary_of(tmp_path / "r")["demos"]}
+    assert not rows["demo_0"]["valid"] and rows["demo_0"]["video"] is None and rows["demo_0"]["data"] is None
+    assert "cannot be read" in rows["demo_0"]["problem"]
+    assert rows["demo_1"]["valid"] and (tmp_path / "r" / rows["demo_1"]["video"]).is_file()
