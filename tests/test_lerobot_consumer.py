@@ -101,3 +101,9 @@ def test_many_files_and_action_chunks(reach_demos: pathlib.Path, tmp_path: pathl
     item = chunked[last - 1]  # the second-to-last step of episode 0: one step of the chunk is past its end
     assert item["action_is_pad"].tolist() == [False, False, True]
     assert np.array_equal(item["action"][:2].numpy(), arrays[0]["actions"][last - 1:last + 1])
+
+
+def test_default_out_is_where_lerobot_looks() -> None:
+    from lerobot.utils.constants import HF_LEROBOT_HOME
+
+    assert lerobot.lerobot_home() == HF_LEROBOT_HOME
