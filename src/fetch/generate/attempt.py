@@ -166,10 +166,10 @@ class Generator:
         if self.options.noise:
             move = move + rng.normal(0.0, self.options.noise, 3)
         action = np.append(np.clip(move, -1.0, 1.0), np.clip(grip, -1.0, 1.0)).astype(np.float32)
-        obs, reward, _, _, info = self.env.step(action)
+        obs, reward, terminated, truncated, info = self.env.step(action)
         base.get_state(out=buf.state_row())
         ok = info["is_success"] >= 1.0
-        buf.record(base.last_action, obs, float(reward), False, False, ok, time.time())
+        buf.record(base.last_action, obs, float(reward), terminated, truncated, ok, time.time())
         held_for = held_for + 1 if ok else 0
         return held_for >= self.options.success_hold_steps, held_for
 

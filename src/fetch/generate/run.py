@@ -72,6 +72,8 @@ class Summary:
     workers: int
     out: str
     gave_up: bool = False
+    startup: float = 0.0
+    """[s] until the first attempt's result came back (starting workers, building their envs)."""
 
     @property
     def success_rate(self) -> float:
@@ -136,6 +138,8 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
         previous = last
         try:
             for result in backend.results(first):
+                if not summary.attempts:
+                    summary.startup = time.perf_counter() - started
                 writer.reserve_attempt()
                 summary.attempts += 1
                 if result.demo is not None:
