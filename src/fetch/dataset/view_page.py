@@ -79,11 +79,14 @@ window.FetchView = (() => {
     t.textContent = s;
     return t;
   }
-  function fmt(v) { return Math.abs(v) >= 100 || v === 0 ? v.toFixed(0) : v.toPrecision(3); }
+  function fmt(v) {
+    if (v === 0 || Math.abs(v) >= 100) return v.toFixed(0);
+    return Math.abs(v) < 0.01 ? v.toExponential(1) : v.toPrecision(3);
+  }
 
   // A line plot of several series over steps; labels name the series.
   function linePlot(title, series, labels) {
-    const W = 280, H = 130, L = 44, R = 6, T = 16, B = 18;
+    const W = 280, H = 130, L = 48, R = 6, T = 16, B = 18;
     const root = svg("svg", { width: W, height: H, class: "plot", "data-title": title });
     let lo = Infinity, hi = -Infinity, n = 0;
     for (const s of series) {
