@@ -194,6 +194,8 @@ def test_an_existing_dataset_is_kept_unless_force(exported: pathlib.Path, reach_
 
 
 def _start_export(src: pathlib.Path, target: pathlib.Path, *extra: str) -> subprocess.Popen[bytes]:
+    """An export in another process; with a camera it runs for seconds after its partial directory
+    appears (the render workers start), so a signal sent then lands while it works."""
     argv = [sys.executable, "-m", "fetch.cli", "export", str(src), "--to", "lerobot", "--repo-id", "test/fetch",
             "--out", str(target), "--image-size", str(SIZE), *extra]
     return subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -226,14 +228,14 @@ def test_a_killed_export_leaves_nothing_or_the_old_dataset(exported: pathlib.Pat
     # Ctrl-C over an existing dataset with --force: the old one is still there, whole, and nothing else
     shutil.copytree(exported, target)
     before = files()
-    proc = _start_export(reach_demos, target, "--force", "--cameras", "none")
+    proc = _start_export(reach_demos, target, "--force", "--cameras", "front")
     _wait_for(partial, proc)
     proc.send_signal(signal.SIGINT)
     assert proc.wait(timeout=120) == 130
     assert files() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
     # SIGKILL over it: the same
-    proc = _start_export(reach_demos, target, "--force", "--cameras", "none")
+    proc = _start_export(reach_demos, target, "--force", "--cameras", "front")
     _wait_for(partial, proc)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
