@@ -300,10 +300,16 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0, help="seed of the random assignment (default 0)")
     s.set_defaults(run=run_split)
     from fetch.dataset.export import add_export_parser  # minari is imported only when it runs
+    from fetch.dataset.view import add_view_parser  # PyAV and the renderer are imported only when it runs
+    from fetch.generate.cli import add_generate_parser  # the generator is imported only when it runs
+    from fetch.learn.cli import add_learn_parsers  # torch is imported only when they run
     from fetch.teleop.gamepad import add_gamepad_parser  # pygame is imported only when it runs
 
     add_export_parser(sub)
     add_gamepad_parser(sub)
+    add_learn_parsers(sub)
+    add_view_parser(sub)
+    add_generate_parser(sub)
     return p
 
 

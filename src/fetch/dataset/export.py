@@ -18,7 +18,7 @@ from fetch.dataset.episode import Demo
 from fetch.dataset.reader import Dataset, open_dataset, require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError
 
-FORMATS = ("minari", "npz")
+FORMATS = ("minari", "npz", "lerobot")
 SELECTIONS = ("successful", "all")
 """`--demos` choices besides the masks a file holds (train, valid, failed, ...)."""
 MINARI_INSTALL = 'pip install "gym-fetch-v2[minari]"'
@@ -263,21 +263,56 @@ def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
     return Exported(path=out, demos=tuple(chosen), steps=steps)
 
 
+def export_lerobot(ds_path: str | os.PathLike[str], repo_id: str, out: str | os.PathLike[str] | None = None, *,
+                   demos: str = "successful", cameras: list[str] | None = None, image_size: int | None = None,
+                   fps: float | None = None, workers: int | None = None, force: bool = False) -> Exported:
+    """Write the selected demos as the LeRobotDataset v3.0 `repo_id` in `out` (default: where LeRobot looks
+    for it, $HF_LEROBOT_HOME/<repo_id>), with videos of `cameras` (default: the recorded ones, else front
+    and wrist) rendered from the saved states at `image_size` (default: the recorded size, else 128) pixels."""
+    from fetch.dataset import lerobot, lerobot_writer
+    from fetch.dataset.render_obs import default_workers
+
+    lerobot.check_repo_id(repo_id)
+    with open_dataset(ds_path) as ds:
+        require_valid(ds)  # nothing a tool flags as invalid is passed on
+        chosen = select_demos(ds, demos)
+        cameras = list(ds.layout.cameras or ("front", "wrist")) if cameras is None else cameras
+        image_size = image_size or ds.layout.image_size or 128
+        rate = lerobot.check_export(ds.env_id, ds.env_kwargs, cameras, image_size, fps)
+        target = pathlib.Path(out) if out is not None else lerobot.lerobot_home() / repo_id
+        written = lerobot_writer.write_lerobot(ds, chosen, target, repo_id, cameras=cameras,
+                                               image_size=image_size, fps=rate, force=force,
+                                               workers=min(workers or default_workers(), len(chosen)))
+    return Exported(path=written.path, demos=tuple(chosen), steps=written.frames)
+
+
 def add_export_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """The `export` subcommand."""
-    p = sub.add_parser("export", help="write a dataset as a Minari dataset or as the seed's per-demo npz files")
+    p = sub.add_parser("export", help="write a dataset as a Minari dataset, a LeRobot dataset or as the seed's "
+                                      "per-demo npz files")
     p.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
     p.add_argument("--to", required=True, choices=FORMATS,
-                   help="minari: a local Minari dataset; npz: the files `collect --format npz` writes")
+                   help="minari: a local Minari dataset; npz: the files `collect --format npz` writes; lerobot: a "
+                        "LeRobotDataset v3.0 (parquet + mp4)")
     p.add_argument("--dataset-id", default=None, metavar="ID",
                    help="minari: (namespace/)name-v<version>, default fetch/<task>/<device>-v0 (with --demos other "
                         "than successful: fetch/<task>/<device>-<demos>-v0); it is written "
                         "under $MINARI_DATASETS_PATH (default ~/.minari/datasets)")
-    p.add_argument("--out", default=None, metavar="DIR", help="npz: the directory for the files")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="npz: the directory for the files; lerobot: the dataset's root (default "
+                        "$HF_LEROBOT_HOME/<repo-id>, where LeRobotDataset(repo_id) looks)")
+    p.add_argument("--repo-id", default=None, metavar="NAME", help="lerobot: the dataset's namespace/name")
+    p.add_argument("--cameras", default=None, metavar="LIST",
+                   help="lerobot: cameras to render as videos, comma-separated (default: the recorded ones, else "
+                        "front,wrist; none: no video)")
+    p.add_argument("--image-size", type=int, default=None, metavar="PX",
+                   help="lerobot: video width and height (default: the recorded images', else 128)")
+    p.add_argument("--fps", type=float, default=None, help="lerobot: frames per second (the control rate, 25)")
     p.add_argument("--demos", default="successful", metavar="WHICH",
                    help="successful (default), all, or a mask of the file (train, valid, failed)")
     p.add_argument("--force", action="store_true",
-                   help="replace a Minari dataset of the same id; write npz files into a directory that has some")
+                   help="replace a Minari dataset of the same id; write npz files into a directory that has some; "
+                        "replace the LeRobot dataset at --out")
     g = p.add_argument_group("minari metadata")
     g.add_argument("--author", default=None, help="the dataset's author (default: none)")
     g.add_argument("--author-email", default=None, help="the author's e-mail address (default: none)")
@@ -288,6 +323,11 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[
 
 
 def run_export(args: argparse.Namespace) -> int:
+    if args.to == "lerobot":
+        return _run_lerobot(args)
+    lerobot_only = [f for f in ("repo_id", "cameras", "image_size", "fps") if getattr(args, f) is not None]
+    if lerobot_only:
+        raise FetchError(f"--{lerobot_only[0].replace('_', '-')} is for --to lerobot")
     if args.to == "npz":
         if args.out is None:
             raise FetchError("--to npz needs --out DIR, the directory for the files")
@@ -304,4 +344,16 @@ def run_export(args: argparse.Namespace) -> int:
                          description=args.description)
     dataset_id = done.path.relative_to(minari_root()).as_posix()
     print(f"wrote {len(done.demos)} demo(s), {done.steps} steps, as Minari dataset {dataset_id} in {done.path}")
+    return 0
+
+
+def _run_lerobot(args: argparse.Namespace) -> int:
+    if args.repo_id is None:
+        raise FetchError("--to lerobot needs --repo-id NAME (namespace/name, e.g. me/fetch_drawer_open)")
+    if args.dataset_id is not None:
+        raise FetchError("--dataset-id is for --to minari; --to lerobot names the dataset with --repo-id")
+    cameras = None if args.cameras is None else [c for c in args.cameras.split(",") if c and c != "none"]
+    done = export_lerobot(args.file, args.repo_id, args.out, demos=args.demos, cameras=cameras,
+                          image_size=args.image_size, fps=args.fps, force=args.force)
+    print(f"wrote {len(done.demos)} demo(s), {done.steps} frames, as LeRobotDataset {args.repo_id} in {done.path}")
     return 0
