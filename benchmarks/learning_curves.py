@@ -184,7 +184,8 @@ def run(job: Job, results: pathlib.Path, steps: int) -> dict[str, Any]:
     start, cpu = time.perf_counter(), time.process_time()
     outcome = evaluate(load(trained.run), EPISODES)
     # CPU seconds are what a run costs on an idle machine; wall seconds here include the other work.
-    return {**dataclasses.asdict(job), "steps": steps, "train_seconds": train_s, "train_cpu_seconds": train_cpu,
+    return {**dataclasses.asdict(job), "policy_settings": policy, "train": dataclasses.asdict(config),
+            "steps": steps, "train_seconds": train_s, "train_cpu_seconds": train_cpu,
             "resumed_from": trained.resumed_from, "eval_seconds": time.perf_counter() - start,
             "eval_cpu_seconds": time.process_time() - cpu,
             "valid_loss": trained.valid_loss, "train_loss": trained.train_loss, **outcome.as_dict()}
