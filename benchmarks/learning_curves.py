@@ -63,8 +63,8 @@ class Job:
 
 
 def jobs() -> Iterator[Job]:
-    """Every run, in the order they are worth having: one training seed of the 100-demo point on every
-    task (the bar) and of each comparison first, then the other seeds, then the rest of the curves."""
+    """Every run, in the order they are worth having: one training seed of everything (the 100-demo point
+    on every task, which is the bar, then the comparisons and the curves), then the next seed."""
     for seed in SEEDS:
         for task in ALL_TASKS:
             yield Job(task, "stop", "mlp-chunk", 100, seed)
@@ -73,7 +73,6 @@ def jobs() -> Iterator[Job]:
                 yield Job(task, recording, "mlp-chunk", 100, seed)
         for task in ("PickPlace-v2", "Push-v2"):
             yield Job(task, "stop", "mlp", 100, seed)
-    for seed in SEEDS:
         for demos in (10, 30, 300):
             for task in CURVE_TASKS:
                 yield Job(task, "stop", "mlp-chunk", demos, seed)
