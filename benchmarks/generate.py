@@ -88,6 +88,7 @@ def measure(key: str, results: dict[str, dict[str, Any]], path: pathlib.Path, so
             out: pathlib.Path, demos: int, workers: int) -> dict[str, Any]:
     if key in results:
         return results[key]
+    cpu = _cpu_seconds()
     # Slide's low rate would take ~50 attempts per demo: stop at 3 per demo asked for (the rate is still measured).
     summary = generate(GenerateConfig(source=str(source), out=str(out), demos=demos, seed=10_000, workers=workers,
                                       max_attempts=3 * demos), log=lambda text: print(f"  {text}", flush=True))
@@ -101,6 +102,9 @@ def measure(key: str, results: dict[str, dict[str, Any]], path: pathlib.Path, so
            # after the first result: without starting the workers and building their envs (~5 s)
            "steady_per_min": 60 * (summary.saved - 1) / (summary.seconds - summary.startup)
            if summary.saved > 1 and summary.seconds > summary.startup else 0.0, "startup": summary.startup,
+           # CPU seconds per demo of the driver and its (joined) workers: on a machine others share, the
+           # wall-clock scaling says more about their load than about ours; this does not.
+           "cpu_per_demo": (_cpu_seconds() - cpu) / summary.saved if summary.saved else 0.0,
            "run_demos": summary.saved, "seconds": summary.seconds, "workers": summary.workers,
            "load": os.getloadavg()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     with path.open("a") as f:
@@ -109,6 +113,13 @@ def measure(key: str, results: dict[str, dict[str, Any]], path: pathlib.Path, so
     print(f"  {key}: {row['success']:.1%} success, {row['per_min']:.0f} demos/min, load {row['load']:.1f}",
           flush=True)
     return row
+
+
+def _cpu_seconds() -> float:
+    import resource
+
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 def main() -> None:
@@ -158,8 +169,8 @@ def print_table(results: dict[str, dict[str, Any]], tasks: list[str], operators:
                 else ["-", "-"]
         print(f"| `{env_id}` | " + " | ".join(cells) + " |")
     print("\n| task | demos/min, 1 worker | 2 workers | scaling efficiency | after start-up: 1 / 2 / efficiency "
-          "| load (1-min) |")
-    print("|---|---|---|---|---|---|")
+          "| CPU ms per demo: 1 / 2 / efficiency | load (1-min) |")
+    print("|---|---|---|---|---|---|---|")
     for env_id in SCALING_TASKS:
         one, two = results.get(f"scaling/{env_id}/1"), results.get(f"scaling/{env_id}/2")
         if one and two:
@@ -167,8 +178,13 @@ def print_table(results: dict[str, dict[str, Any]], tasks: list[str], operators:
             if one.get("steady_per_min") and two.get("steady_per_min"):
                 steady = (f"{one['steady_per_min']:.0f} / {two['steady_per_min']:.0f} / "
                           f"{two['steady_per_min'] / (2 * one['steady_per_min']):.2f}")
+            cpu = ""
+            if one.get("cpu_per_demo") and two.get("cpu_per_demo"):
+                cpu = (f"{1000 * one['cpu_per_demo']:.0f} / {1000 * two['cpu_per_demo']:.0f} / "
+                       f"{one['cpu_per_demo'] / two['cpu_per_demo']:.2f}")
             print(f"| `{env_id}` | {one['per_min']:.0f} | {two['per_min']:.0f} | "
-                  f"{two['per_min'] / (2 * one['per_min']):.2f} | {steady} | {one['load']:.1f} / {two['load']:.1f} |")
+                  f"{two['per_min'] / (2 * one['per_min']):.2f} | {steady} | {cpu} | "
+                  f"{one['load']:.1f} / {two['load']:.1f} |")
 
 
 if __name__ == "__main__":
