@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import abc
 import math
-from typing import ClassVar, NamedTuple
+from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 import mujoco
 import numpy as np
 
 from fetch import observation as ob
 from fetch.robot import RobotConfig
+
+if TYPE_CHECKING:
+    from fetch.tasks.subtasks import Subtask
 
 TABLE_TOP = 0.4
 """[m] height of the table's surface in every task."""
@@ -68,6 +71,8 @@ class Task(abc.ABC):
     """the part that is the achieved goal."""
     success_rule: ClassVar[str] = "within 5 cm of the goal"
     """how success is judged, in words (the README's task table shows it)."""
+    subtasks: ClassVar[tuple[Subtask, ...]] = ()
+    """the object-centric parts of its demos, in order (`fetch.tasks.subtasks`; demo generation)."""
 
     @abc.abstractmethod
     def build(self, spec: mujoco.MjSpec) -> None:

@@ -18,6 +18,7 @@ from fetch.tasks.base import (
     mocap_index,
     object_parts,
 )
+from fetch.tasks.subtasks import GOAL, Grasped, Lifted, Subtask
 
 INNER = 0.10
 """[m] half the bin's inner width (a 20 x 20 cm floor)."""
@@ -57,6 +58,9 @@ class _BinTask(Task):
     parts = (*object_parts("block", "block"), ob.site_pos("bin_pos", "bin"))
     achieved = "block_pos"
     success_rule = "block within 5 cm of the goal"
+    subtasks = (Subtask("grasp", "block", Grasped("block")),
+                Subtask("lift", "block", Lifted("block", "block", TABLE_TOP + WALL_HEIGHT + BLOCK + 0.01)),
+                Subtask("place", GOAL, None))
     bin_range = 0.10
     """[m] the bin's centre is sampled this far (x and y) around the gripper's start."""
 

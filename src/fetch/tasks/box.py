@@ -10,6 +10,7 @@ import numpy as np
 from fetch import observation as ob
 from fetch.robot import RobotConfig
 from fetch.tasks.base import TABLE_TOP, FreeObject, Start, Task, box_geom, mocap_index, object_parts
+from fetch.tasks.subtasks import GOAL, Grasped, Lifted, Subtask
 
 BOX = 0.08
 """[m] half the box's outer width (16 x 16 cm)."""
@@ -64,6 +65,9 @@ class _BoxTask(Task):
     parts = (*object_parts("lid", "lid"), ob.site_pos("box_pos", "box"))
     achieved = "lid_pos"
     success_rule = "lid within 5 cm of the goal"
+    subtasks = (Subtask("grasp", "lid", Grasped("lid")),
+                Subtask("lift", "lid", Lifted("lid", "lid", SEATED_Z + 0.02)),
+                Subtask("place", GOAL, None))
     box_range = 0.08
     """[m] the box's centre is sampled this far (x and y) around the gripper's start."""
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from fetch.robot import RobotConfig
 from fetch.tasks.base import GRIPPER_PARTS, FreeObject, Start, Task, object_parts, sample_clear_xy
+from fetch.tasks.subtasks import GOAL, Beside, Grasped, Subtask
 
 
 class _ClassicTask(Task):
@@ -34,6 +35,7 @@ class Reach(_ClassicTask):
     robot = RobotConfig(scene="reach.xml", workspace=None, block_gripper=True)
     parts = GRIPPER_PARTS
     achieved = "grip_pos"
+    subtasks = (Subtask("reach", GOAL, None),)
     target_range = 0.15
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
@@ -85,6 +87,9 @@ class Push(_ObjectTask):
     name = "push"
     robot = RobotConfig(scene="push.xml", workspace=None, block_gripper=True)
     params = ObjectGoal(obj_range=0.15, target_range=0.15)
+    # Both parts are framed along the line from the object to the goal.
+    subtasks = (Subtask("approach", "object0", Beside("object0"), heading=GOAL),
+                Subtask("push", GOAL, None, heading="object0"))
 
 
 class PickPlace(_ObjectTask):
@@ -93,6 +98,7 @@ class PickPlace(_ObjectTask):
     name = "pick_place"
     robot = RobotConfig(scene="pick_and_place.xml", workspace=None)
     params = ObjectGoal(obj_range=0.15, target_range=0.15, target_in_the_air=True)
+    subtasks = (Subtask("grasp", "object0", Grasped("object0")), Subtask("place", GOAL, None))
 
 
 class Slide(_ObjectTask):
@@ -101,3 +107,4 @@ class Slide(_ObjectTask):
     name = "slide"
     robot = RobotConfig(scene="slide.xml", workspace=None, block_gripper=True)
     params = ObjectGoal(obj_range=0.1, target_range=0.3, target_offset=(0.4, 0.0, 0.0))
+    subtasks = (Subtask("slide", "object0", None, heading=GOAL),)

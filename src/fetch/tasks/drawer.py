@@ -8,6 +8,10 @@ import numpy as np
 from fetch import observation as ob
 from fetch.robot import RobotConfig
 from fetch.tasks.base import GRIP, GRIPPER_PARTS, TABLE_TOP, Start, Task, box_geom, mocap_index
+from fetch.tasks.subtasks import Hooked, Subtask
+
+HOOK = Subtask("hook", "handle", Hooked("handle", behind=0.028, tolerance=(0.012, 0.04, 0.012)))
+"""Closed fingers in the slot behind the handle bar (its centre 2.8 cm behind the bar's)."""
 
 SLIDE = 0.20
 """[m] the drawer's travel."""
@@ -104,6 +108,7 @@ class DrawerOpen(_DrawerTask):
     success_rule = "drawer open by >= 15 cm (the handle within 5 cm of the goal)"
     start_opening = 0.0
     goal_opening = SLIDE
+    subtasks = (HOOK, Subtask("pull", "handle", None))
 
 
 class DrawerClose(_DrawerTask):
@@ -113,3 +118,4 @@ class DrawerClose(_DrawerTask):
     success_rule = "drawer open by <= 5 cm (the handle within 5 cm of the goal)"
     start_opening = SLIDE
     goal_opening = 0.0
+    subtasks = (HOOK, Subtask("push", "handle", None))
