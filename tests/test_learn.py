@@ -9,7 +9,6 @@ import pathlib
 import signal
 import subprocess
 import sys
-from collections.abc import Mapping
 
 import gymnasium as gym
 import numpy as np
@@ -268,36 +267,19 @@ def test_without_torch_train_says_how_to_install_it(reach: pathlib.Path, tmp_pat
     assert err.endswith('pip install "gym-fetch-v2[train]"') and len(err.splitlines()) == 1
 
 
-class Steering:
-    """A person on the virtual pad steering the grip site to the goal; the real gamepad device reads the pad."""
-
-    name = "gamepad"
-
-    def __init__(self, pad, device) -> None:  # noqa: ANN001
-        self.pad, self.device = pad, device
-
-    def reset(self) -> None:
-        self.device.reset()
-
-    def poll(self, obs: Mapping[str, np.ndarray]):  # noqa: ANN201
-        x, y, z = np.clip((obs["desired_goal"] - obs["achieved_goal"]) / 0.05, -1, 1)
-        self.pad.set_stick(float(x), float(-y))  # SDL's y axis points down
-        self.pad.set_triggers(max(0.0, -float(z)), max(0.0, float(z)))
-        return self.device.poll(obs)
-
-    def close(self) -> None:
-        self.device.close()
-
-
 def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  # noqa: ANN001
     """Demos recorded through SDL's game-controller path train a policy that then runs end to end."""
+    import vpad
     from fetch.dataset import open_dataset
+    from fetch.experts import make_expert
     from fetch.teleop.gamepad import GamepadConfig, GamepadDevice
     from fetch.teleop.session import CollectConfig, Session
 
     config = CollectConfig(env_id="Reach-v2", out=str(tmp_path / "human"), device="gamepad", render="none",
                            control_hz=0, success_hold_steps=3, max_steps=100, episodes=4)
-    Session(config, Steering(pad, GamepadDevice(GamepadConfig(deadzone=0.02))), log=lambda _: None).run()
+    # A person steering the grip site to the goal: Reach's expert on the pad (tests/vpad.py).
+    operator = vpad.ExpertOnPad(pad, GamepadDevice(GamepadConfig(deadzone=0.02)), make_expert("Reach-v2"))
+    Session(config, operator, log=lambda _: None).run()
     with open_dataset(tmp_path / "human") as ds:
         assert len(ds.demo_names) == 4 and {ds.attrs(n)["device"] for n in ds.demo_names} == {"gamepad"}
     assert _train(tmp_path / "human", tmp_path / "run", "--steps", "100") == 0
