@@ -173,6 +173,25 @@ def test_eval_runs_on_seeds_the_dataset_never_used(torch, reach: pathlib.Path, t
         "the same seeds give the same outcomes, however many envs step at once"
 
 
+def test_eval_in_the_batched_vector_env_gives_what_separate_envs_give(torch, reach: pathlib.Path, tmp_path,
+                                                                      monkeypatch) -> None:  # noqa: ANN001
+    from fetch.learn import evaluate as ev
+    from fetch.learn.runtime import load
+    from fetch.vector import FetchVectorEnv, has_batch
+
+    assert _train(reach, tmp_path / "run", "--steps", "300") == 0
+    policy = load(tmp_path / "run")
+    built: list[gym.vector.VectorEnv] = []
+    make = ev.make_vector_env
+    monkeypatch.setattr(ev, "make_vector_env", lambda *a: built.append(make(*a)) or built[-1])
+    batched = ev.evaluate(policy, 6, envs=4)
+    assert isinstance(built[0], FetchVectorEnv) == has_batch(), "the batched env wherever mujoco can thread it"
+    monkeypatch.setattr(ev, "make_vector_env", lambda env_id, count, kwargs: gym.vector.SyncVectorEnv(
+        [lambda: gym.make(env_id, **kwargs) for _ in range(count)]))
+    separate = ev.evaluate(policy, 6, envs=4)
+    assert batched == separate and 0 < len(batched.success) == 6
+
+
 def test_eval_writes_videos(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
     pytest.importorskip("av")
     assert _train(reach, tmp_path / "run", "--steps", "20") == 0
