@@ -67,7 +67,9 @@ def _limit_file_size(limit: int) -> None:
 
 def test_a_write_failure_is_a_clear_error_and_keeps_earlier_demos(tmp_path: pathlib.Path) -> None:
     out = tmp_path / "demos"
-    first = subprocess.run(collector(out, "--device", "expert", "--episodes", "3"), capture_output=True,
+    # The expert with a person's settings (ending at success, 500 steps), so the scripted session may resume.
+    first = subprocess.run(collector(out, "--device", "expert", "--episodes", "3", "--stop-on-success",
+                                     "--max-steps", "500"), capture_output=True,
                            text=True, timeout=120)
     assert first.returncode == 0, first.stderr
     before = (out / "demos.hdf5").read_bytes()

@@ -71,11 +71,12 @@ def dataset_table() -> str:
         rows.append(f"| `data/demo_<i>.attrs['{key}']` | | | {doc} |")
     for key, doc in schema.TOOL_ATTRS:
         rows.append(f"| `{key}` | | | {doc} |")
-    for field in layout.fields():
+    for field in layout.fields() + schema.OPTIONAL_FIELDS:
         tail = ", ".join(["D" if field.path == "states" else str(n) for n in field.tail] or [])
         rows_ = "T+1" if field.extra_rows else "T"
         shape = f"({rows_}{', ' + tail if tail else ''})"
-        rows.append(f"| `data/demo_<i>/{field.path}` | {field.dtype} | {shape} | {field.doc} |")
+        optional = "optional: " if field in schema.OPTIONAL_FIELDS else ""
+        rows.append(f"| `data/demo_<i>/{field.path}` | {field.dtype} | {shape} | {optional}{field.doc} |")
     rows.append("| `data/demo_<i>/obs/<camera>_image`, `next_obs/...` | uint8 | (T, H, W, 3) | "
                 "with `--cameras` or after `render-obs`: the camera's image before / after step t |")
     rows.append("| `mask/train`, `mask/valid`, `mask/failed` | bytes | (n,) | demo names: a 90/10 split of the "

@@ -28,8 +28,9 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="demos",
                    help="output directory (default demos; resumed if it holds a matching dataset)")
     p.add_argument("--episodes", type=int, default=0, help="demos to save in this session (default 0: until you quit)")
-    p.add_argument("--max-steps", type=int, default=500,
-                   help="steps per attempt at most (default 500; replaces the 50-step training limit)")
+    p.add_argument("--max-steps", type=int, default=None,
+                   help="steps per attempt at most (default 500, replacing the 50-step training limit; for "
+                        "the expert the task's horizon, 50)")
     p.add_argument("--seed", type=int, default=0,
                    help="attempt k of the dataset resets with seed + k (default 0; a whole number >= 0)")
     p.add_argument("--control-hz", type=float, default=None,
@@ -37,8 +38,9 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
                         "as fast as possible for expert/scripted without a window; 0: as fast as possible")
     p.add_argument("--success-hold-steps", type=int, default=10,
                    help="steps success must hold before the attempt ends (default 10)")
-    p.add_argument("--stop-on-success", action=argparse.BooleanOptionalAction, default=True,
-                   help="end the attempt once success has held (default on)")
+    p.add_argument("--stop-on-success", action=argparse.BooleanOptionalAction, default=None,
+                   help="end the attempt once success has held (default on; off for the expert, whose demos "
+                        "run to the task's horizon)")
     p.add_argument("--ignore-env-done", dest="ignore_env_done", action="store_true", default=False,
                    help="keep going when the env reports terminated (never past --max-steps)")
     p.add_argument("--respect-env-done", dest="ignore_env_done", action="store_false",

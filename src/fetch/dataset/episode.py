@@ -31,7 +31,9 @@ class EpisodeBuffer:
     """Records one episode into preallocated arrays (grown by doubling past `capacity`).
 
     `begin` takes the reset's observation and state; `record` one step: the action applied, what
-    the env returned, and the state after it. Recording copies values in; nothing aliases the env.
+    the env returned, the state after it and, for a device that perturbs what it sends on purpose,
+    the action it meant (`label`; the episode then gets `expert_actions`, the applied action standing
+    in for a step without one). Recording copies values in; nothing aliases the env.
     Camera images are not recorded here: the writer renders them from the states.
     """
 
@@ -40,10 +42,12 @@ class EpisodeBuffer:
         self._capacity = max(int(capacity), 1)
         self._allocate(self._capacity)
         self.length = 0
+        self.labelled = False
 
     def _allocate(self, capacity: int) -> None:
         n = capacity
         self.actions = np.zeros((n, 4), np.float32)
+        self.labels = np.zeros((n, 4), np.float32)
         self.obs = {key: np.zeros((n + 1, size)) for key, size in self.layout.obs_sizes}
         self.rewards = np.zeros(n)
         self.terminated = np.zeros(n, bool)
@@ -53,7 +57,7 @@ class EpisodeBuffer:
         self.timestamps = np.zeros(n)
 
     def _grow(self) -> None:
-        saved = {name: getattr(self, name) for name in ("actions", "rewards", "terminated", "truncated",
+        saved = {name: getattr(self, name) for name in ("actions", "labels", "rewards", "terminated", "truncated",
                                                          "is_success", "states", "timestamps")}
         obs = self.obs
         self._capacity *= 2
@@ -66,6 +70,7 @@ class EpisodeBuffer:
     def begin(self, obs: Mapping[str, np.ndarray], state: np.ndarray) -> None:
         """Start a new episode from the reset's observation and `env.get_state()`."""
         self.length = 0
+        self.labelled = False
         for key, rows in self.obs.items():
             rows[0] = obs[key]
         self.states[0] = state
@@ -77,12 +82,17 @@ class EpisodeBuffer:
         return self.states[self.length + 1]
 
     def record(self, action: np.ndarray, obs: Mapping[str, np.ndarray], reward: float, terminated: bool,
-               truncated: bool, success: bool, timestamp: float) -> None:
+               truncated: bool, success: bool, timestamp: float, label: np.ndarray | None = None) -> None:
         """Append one step; the state after it must already be in `state_row()`."""
         t = self.length
         if t == self._capacity:
             self._grow()
         self.actions[t] = action
+        if label is not None:
+            self.labels[t] = np.clip(label, -1.0, 1.0)
+            self.labelled = True
+        else:
+            self.labels[t] = action
         for key, rows in self.obs.items():
             rows[t + 1] = obs[key]
         self.rewards[t] = reward
@@ -96,6 +106,8 @@ class EpisodeBuffer:
         """The episode so far as a `Demo` of copies (the buffer can be reused at once)."""
         t = self.length
         arrays: dict[str, np.ndarray] = {"actions": self.actions[:t].copy()}
+        if self.labelled:
+            arrays["expert_actions"] = self.labels[:t].copy()
         for key, rows in self.obs.items():
             arrays[f"obs/{key}"] = rows[:t].copy()
             arrays[f"next_obs/{key}"] = rows[1 : t + 1].copy()

@@ -78,6 +78,15 @@ class Layout:
         return dataclasses.replace(self, cameras=cameras, image_size=image_size)
 
 
+OPTIONAL_FIELDS: tuple[Field, ...] = (
+    Field("expert_actions", "float32", (4,),
+          "the action the device meant at step t where it sent a perturbed one on purpose (the expert under "
+          "DART noise): what a policy learns, while `actions` replays the demo"),
+    Field("subtasks", "uint8", (), "`gym-fetch generate` output: the index of the task's subtask step t belongs to"),
+)
+"""Arrays some demos hold; checked like the others when present."""
+
+
 def image_key(camera: str) -> str:
     return f"{camera}_image"
 
@@ -178,7 +187,8 @@ def demo_index(name: str) -> int:
 def check_arrays(arrays: Mapping[str, Any], layout: Layout, num_samples: int) -> list[str]:
     """Problems of one demo's arrays against the layout (empty when it conforms)."""
     problems = []
-    for field in layout.fields():
+    present = tuple(f for f in OPTIONAL_FIELDS if f.path in arrays)
+    for field in layout.fields() + present:
         if field.path not in arrays:
             problems.append(f"missing {field.path}")
             continue

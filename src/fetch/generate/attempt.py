@@ -36,8 +36,10 @@ class Options:
     selection: str = "nearest"
     nearest_k: int = 3
     noise: float = 0.0
-    """standard deviation of Gaussian noise added to a[:3], in action units. MimicGen adds 0.05; here
-    that cut a policy trained on the result from 94 % to 74 % (PickPlace-v2, docs/generate.md)."""
+    """standard deviation of Gaussian noise added to the executed a[:3], in action units, the clean
+    action being recorded as `expert_actions` (DART; what training learns). MimicGen adds 0.05 and
+    trains on the noisy actions; that cut a policy trained on the result from 94 % to 74 %
+    (PickPlace-v2, docs/generate.md)."""
     transit_speed: float = 0.8
     """the blend-in moves the hand at most this fraction of full speed on top of the segment's motion."""
     blend_fraction: float = 0.75
@@ -164,13 +166,16 @@ class Generator:
     def _step(self, target: np.ndarray, grip: float, rng: np.random.Generator, held_for: int) -> tuple[bool, int]:
         base, buf = self.base, self.buffer
         move = (target - held_grip(base)) / ACTION_STEP
-        if self.options.noise:
-            move = move + rng.normal(0.0, self.options.noise, 3)
-        action = np.append(np.clip(move, -1.0, 1.0), np.clip(grip, -1.0, 1.0)).astype(np.float32)
+        clean = np.append(np.clip(move, -1.0, 1.0), np.clip(grip, -1.0, 1.0)).astype(np.float32)
+        action, label = clean, None
+        if self.options.noise:  # DART: execute a perturbed action, label the clean one (`expert_actions`)
+            action = clean.copy()
+            action[:3] = np.clip(move + rng.normal(0.0, self.options.noise, 3), -1.0, 1.0)
+            label = clean
         obs, reward, terminated, truncated, info = self.env.step(action)
         base.get_state(out=buf.state_row())
         ok = info["is_success"] >= 1.0
-        buf.record(base.last_action, obs, float(reward), terminated, truncated, ok, time.time())
+        buf.record(base.last_action, obs, float(reward), terminated, truncated, ok, time.time(), label)
         held_for = held_for + 1 if ok else 0
         return held_for >= self.options.success_hold_steps, held_for
 

@@ -22,7 +22,8 @@ def flat_obs(obs: Mapping[str, np.ndarray]) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class Episode:
-    """One demo: T observations (before each step) and the T actions taken from them."""
+    """One demo: T observations (before each step) and the T actions to learn from them (the
+    demo's `expert_actions` where it has them, else `actions`)."""
 
     name: str
     seed: int
@@ -81,7 +82,9 @@ def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
             continue
         arrays = ds.arrays(name)
         obs = flat_obs({k: arrays[f"obs/{k}"] for k in OBS_KEYS})
-        out.append(Episode(name, int(attrs["seed"]), obs, arrays["actions"].astype(np.float32)))
+        # A demo recorded under DART noise learns the expert's clean action, not the perturbed one it executed.
+        actions = arrays["expert_actions"] if "expert_actions" in arrays else arrays["actions"]
+        out.append(Episode(name, int(attrs["seed"]), obs, np.asarray(actions, np.float32)))
     return tuple(out)
 
 

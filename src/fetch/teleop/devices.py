@@ -25,7 +25,9 @@ class Command:
     `quit` ends the session; `paused` (e.g. a pad unplugged) holds the arm without stepping;
     `switch_camera` asks the viewer for the next camera; `precision` says slow mode is on (HUD);
     `gripper_closed` is the state a device with a gripper toggle holds (None: read from the
-    action's sign, for devices that send a[3] directly).
+    action's sign, for devices that send a[3] directly). `label` is the action the device meant when
+    the one it sends is deliberately perturbed (the expert under DART noise): it is recorded beside the
+    executed action as the demo's `expert_actions`, the target a policy learns.
     """
 
     action: np.ndarray
@@ -38,6 +40,7 @@ class Command:
     status: str = ""
     """A short line for the HUD (e.g. "precision", "pad disconnected")."""
     gripper_closed: bool | None = None
+    label: np.ndarray | None = None
 
     @property
     def closes_gripper(self) -> bool:
@@ -135,6 +138,10 @@ class DeviceKind:
     build: Callable[[DeviceContext], Device]
     aliases: tuple[str, ...] = ()
     """Other `--device` values meaning this one (the seed's "xbox" is the gamepad)."""
+    holds_past_success: bool = False
+    """Unless `--stop-on-success` is given, an attempt runs on to the task's horizon (the default
+    `--max-steps`) instead of ending once success has held: a demo that shows holding the goal
+    teaches a policy more (docs/learning_curves.md), and costs no one's time when no person drives."""
 
     def __post_init__(self) -> None:
         where = f"device {self.name!r}"
@@ -150,5 +157,7 @@ class DeviceKind:
             raise TypeError(f"{where}: summary must be a line for --help, got {self.summary!r}")
         if self.add_arguments is not None and not callable(self.add_arguments):
             raise TypeError(f"{where}: add_arguments must be a function or None, got {self.add_arguments!r}")
+        if not isinstance(self.holds_past_success, bool):
+            raise TypeError(f"{where}: holds_past_success must be True or False, got {self.holds_past_success!r}")
         if not callable(self.build):
             raise TypeError(f"{where}: build must be a function of a DeviceContext, got {self.build!r}")

@@ -1,36 +1,68 @@
-"""The task's scripted expert as a device: datasets with no person."""
+"""The task's scripted expert as a device: datasets with no person.
+
+By default the expert records under DART noise (Laskey et al. 2017): the arm executes the expert's
+action plus Gaussian noise, so the demos visit the states a learned policy drifts into, and each step
+also records the expert's clean action there (`expert_actions`), which is what `gym-fetch train`
+learns. `actions` stays what the arm did, so the demo replays exactly. docs/learning_curves.md has
+the measurements behind the default; `--expert-noise 0` records the plain expert.
+"""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from fetch.teleop.devices import Command, DeviceKind
+from fetch.errors import FetchError
+from fetch.teleop.devices import Command, DeviceContext, DeviceKind
+
+EXPERT_NOISE = 0.1
+"""Default std of the Gaussian noise on the executed action (the expert table's noise level)."""
 
 
 class ExpertDevice:
-    """The task's scripted expert as a device: datasets with no person."""
+    """The task's expert; with `noise` > 0 it executes a perturbed action and labels the clean one."""
 
     name = "expert"
 
-    def __init__(self, env: Any) -> None:
+    def __init__(self, env: Any, noise: float = 0.0, seed: int = 0) -> None:
         from fetch.experts import make_expert
 
+        if not (math.isfinite(noise) and noise >= 0):
+            raise FetchError(f"--expert-noise must be a finite std >= 0 (0: the plain expert), got {noise!r}")
         self.expert = make_expert(env)
+        self.noise = float(noise)
+        self.rng = np.random.default_rng(seed)
 
     def reset(self) -> None:
         self.expert.reset()
 
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
-        return Command(np.asarray(self.expert(obs), dtype=np.float32))
+        clean = np.asarray(self.expert(obs), dtype=np.float32)
+        if not self.noise:
+            return Command(clean)
+        noisy = np.clip(clean + self.rng.normal(0.0, self.noise, clean.shape), -1.0, 1.0)
+        return Command(noisy.astype(np.float32), label=clean)
 
     def close(self) -> None:
         pass
 
 
+def add_expert_arguments(p: Any) -> None:
+    p.add_argument("--expert-noise", type=float, default=EXPERT_NOISE, metavar="STD",
+                   help="with --device expert: std of the Gaussian noise added to the executed action, the "
+                        "expert's clean action being recorded as `expert_actions` for training (DART; "
+                        "default %(default)s; 0: the plain expert)")
+
+
+def build_expert(context: DeviceContext) -> ExpertDevice:
+    args = context.args
+    return ExpertDevice(context.env, getattr(args, "expert_noise", EXPERT_NOISE), getattr(args, "seed", 0))
+
+
 KIND = DeviceKind(
-    name="expert", human=False, legend=(), add_arguments=None,
-    summary="the task's scripted expert (no person, no display needed)",
-    build=lambda context: ExpertDevice(context.env))
+    name="expert", human=False, legend=(), add_arguments=add_expert_arguments, holds_past_success=True,
+    summary="the task's scripted expert (no person, no display needed), under DART noise by default",
+    build=build_expert)

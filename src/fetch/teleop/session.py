@@ -314,7 +314,7 @@ class Session:
             self.ticks.append((deadline, polled, time.perf_counter()))
             self.base.get_state(out=buf.state_row())
             ok = info["is_success"] >= 1.0
-            buf.record(action, obs, float(reward), terminated, truncated, ok, now)
+            buf.record(action, obs, float(reward), terminated, truncated, ok, now, command.label)
             held = held + 1 if ok else 0
             success = success or held >= cfg.success_hold_steps
             if success and cfg.stop_on_success:
