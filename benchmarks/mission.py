@@ -1,7 +1,7 @@
 """The measure of the whole tool: ten demonstrations with a pad, then a policy that solves the task.
 
     .venv-train/bin/python benchmarks/mission.py [--env PickPlace-v2] [--demos 10] [--generated 1000]
-        [--noise 0.1] [--workers 2] [--dir /tmp/mission]
+        [--noise 0.1] [--generate-noise STD] [--workers 2] [--dir /tmp/mission]
 
 1. teleop: 10 demos through the real gamepad path (SDL's virtual pad, the real `GamepadDevice` and
    collector), driven by a stand-in for a person (`tests/vpad.ExpertOnPad`: the expert's intent,
@@ -64,6 +64,8 @@ def main() -> None:
     parser.add_argument("--demos", type=int, default=10)
     parser.add_argument("--generated", type=int, default=1000)
     parser.add_argument("--noise", type=float, default=0.1)
+    parser.add_argument("--generate-noise", type=float, default=None,
+                        help="gym-fetch generate --noise (default: generate's own default)")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--dir", default="/tmp/mission")
@@ -79,8 +81,9 @@ def main() -> None:
         timing["teleop"], timing["person"] = teleop(args.env, human, args.demos, args.noise)
         timing_file.write_text(json.dumps(timing))
     if "generate" not in timing:
+        noise = [] if args.generate_noise is None else ["--noise", str(args.generate_noise)]
         timing["generate"] = gym_fetch("generate", "--source", str(human), "--out", str(generated),
-                                       "--demos", str(args.generated), "--workers", str(args.workers))
+                                       "--demos", str(args.generated), "--workers", str(args.workers), *noise)
         timing_file.write_text(json.dumps(timing))
     if "train" not in timing:
         timing["train"] = gym_fetch("train", str(generated), "--out", str(run))

@@ -119,7 +119,7 @@ def test_temporal_ensembling_averages_every_chunk_prediction_for_this_step(torch
     from fetch.learn.data import flat_obs
     from fetch.learn.runtime import load
 
-    assert _train(reach, tmp_path / "run", "--steps", "50", "--chunk", "3") == 0
+    assert _train(reach, tmp_path / "run", "--policy", "mlp-chunk", "--steps", "50", "--chunk", "3") == 0
     policy = load(tmp_path / "run")
     env = gym.make("Reach-v2")
     obs, _ = env.reset(seed=5)

@@ -1,0 +1,98 @@
+"""Which recording and policy to default to: one training seed, 100 DART expert demos, variants side by side.
+
+    .venv-train/bin/python benchmarks/train_choices.py TASK:VARIANT ... [--results DIR]
+
+Uses `learning_curves.py`'s datasets (the same `--results` directory: DART demos to the horizon,
+collected there once) and its training and evaluation (100 episodes on unseen seeds). A variant
+changes one thing from `dart-5k` (mlp-chunk, 5000 steps): `dartstop` ends the demos 10 steps after
+success, `c20` predicts 20-action chunks, `512x3` a wider, deeper MLP, `on05` observation noise
+0.05, `gru` the recurrent policy, `10k`/`30k` longer training. One JSON file per run (a run already
+done is skipped), and a line per run as it finishes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import shutil
+import sys
+import time
+from typing import Any
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import learning_curves as lc  # noqa: E402
+
+VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
+    "dart-5k": ("dart", 5000, {}, {}),
+    "dart-10k": ("dart", 10000, {}, {}),
+    "dart-30k": ("dart", 30000, {}, {}),
+    "dartstop-5k": ("dartstop", 5000, {}, {}),
+    "dart-5k-c20": ("dart", 5000, {"chunk": 20}, {}),
+    "dart-5k-512x3": ("dart", 5000, {"hidden": 512, "layers": 3}, {}),
+    "dart-5k-on05": ("dart", 5000, {}, {"obs_noise": 0.05}),
+    "dart-5k-gru": ("dart", 5000, {"kind": "gru"}, {}),
+}
+"""variant: (recording, gradient steps, policy settings, training settings)."""
+
+
+def dart_stop(results: pathlib.Path, task: str) -> pathlib.Path:
+    """120 DART demos that end 10 steps after success (the collector's ending for a person)."""
+    from fetch.teleop.session import CollectConfig, Session
+
+    done = results / "data" / f"{task}__dartstop"
+    if done.exists():
+        return done
+    partial = results / "data" / f".{task}__dartstop.partial"
+    shutil.rmtree(partial, ignore_errors=True)
+    config = CollectConfig(task, out=str(partial), episodes=120, max_steps=50, device="expert", render="none")
+    Session(config, lc.NoisyExpert(task, lc.DART_STD, seed=0), log=lambda _: None).run()
+    partial.rename(done)
+    return done
+
+
+def run(results: pathlib.Path, task: str, variant: str) -> dict[str, Any] | None:
+    from fetch.learn import load
+    from fetch.learn.evaluate import evaluate
+    from fetch.learn.policies import KIND_DEFAULTS
+    from fetch.learn.train import TrainConfig, train
+
+    target = results / "choices" / f"{task}__{variant}.json"
+    if target.exists():
+        return None
+    recording, steps, net, extra = VARIANTS[variant]
+    data = lc.collected(results, task, "dart", 100) if recording == "dart" else dart_stop(results, task)
+    kind = net.get("kind", "mlp-chunk")
+    policy = {**KIND_DEFAULTS.get(kind, {}), "kind": kind, **net}
+    config = TrainConfig(steps=steps, seed=0, demos=100, **extra)
+    start, cpu = time.perf_counter(), time.process_time()
+    trained = train(lc.relabelled(data), results / "choices_runs" / f"{task}__{variant}", policy, config,
+                    log=lambda _: None, show_progress=False)
+    out = {"task": task, "variant": variant, "train_seconds": time.perf_counter() - start,
+           "train_cpu_seconds": time.process_time() - cpu, "valid_loss": trained.valid_loss,
+           **evaluate(load(trained.run), lc.EPISODES).as_dict()}
+    target.parent.mkdir(parents=True, exist_ok=True)
+    lc.write_json(target, out)
+    return out
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("runs", nargs="+", metavar="TASK:VARIANT", help=f"variants: {', '.join(VARIANTS)}")
+    p.add_argument("--results", default="/tmp/gym-fetch-learning-curves", help="as learning_curves.py's")
+    args = p.parse_args()
+    import fetch  # noqa: F401  (registers the ids)
+
+    for spec in args.runs:
+        task, _, variant = spec.partition(":")
+        if variant not in VARIANTS or task not in lc.ALL_TASKS:
+            p.error(f"{spec!r}: want TASK:VARIANT, TASK one of {', '.join(lc.ALL_TASKS)}, "
+                    f"VARIANT one of {', '.join(VARIANTS)}")
+        out = run(pathlib.Path(args.results), task, variant)
+        if out is not None:
+            print(f"{task} {variant}: {100 * out['success_rate']:.0f}% (train {out['train_cpu_seconds']:.0f} s CPU)",
+                  flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
