@@ -229,7 +229,7 @@ def test_resume_with_other_settings_is_refused(source: pathlib.Path, serial: pat
                                                tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "other"
     assert main(gen_argv(source, out, 2, "--workers", "1")) == 0
-    assert main(gen_argv(source, out, 4, "--workers", "1", "--noise", "0.1")) == 2
+    assert main(gen_argv(source, out, 4, "--workers", "1", "--noise", "0.05")) == 2
     assert "recorded differently" in capsys.readouterr().err
 
 

@@ -35,7 +35,7 @@ class Options:
     """an attempt succeeds once `is_success` has held this many consecutive steps (and stops there)."""
     selection: str = "nearest"
     nearest_k: int = 3
-    noise: float = 0.0
+    noise: float = 0.1
     """standard deviation of Gaussian noise added to the executed a[:3], in action units, the clean
     action being recorded as `expert_actions` (DART; what training learns). MimicGen adds 0.05 and
     trains on the noisy actions; that cut a policy trained on the result from 94 % to 74 %

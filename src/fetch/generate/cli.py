@@ -26,7 +26,9 @@ def add_generate_parser(sub: Any) -> None:
     g.add_argument("--success-hold-steps", type=int, default=5, help="success must hold this long (default 5)")
     g.add_argument("--selection", default="nearest", help="source segment choice: nearest (default) or random")
     g.add_argument("--nearest-k", type=int, default=3, help="choose among this many nearest segments (default 3)")
-    g.add_argument("--noise", type=float, default=0.0, help="action noise std, action units (default 0)")
+    g.add_argument("--noise", type=float, default=0.1,
+                   help="std of the noise on the executed action, action units; the clean action is recorded as "
+                        "expert_actions, what training learns (DART; default %(default)s; 0: none)")
     g.add_argument("--max-attempts", type=int, default=None, help="give up after this many (default 50 per demo)")
     g.set_defaults(run=run_generate)
     s = sub.add_parser("subtasks", help=SUBTASKS_HELP)
