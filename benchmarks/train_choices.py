@@ -6,7 +6,8 @@ Uses `learning_curves.py`'s datasets (the same `--results` directory: DART demos
 collected there once) and its training and evaluation (100 episodes on unseen seeds). A variant
 changes one thing from `dart-5k` (mlp-chunk, 5000 steps): `dartstop` ends the demos 10 steps after
 success, `c20` predicts 20-action chunks, `512x3` a wider, deeper MLP, `on05` observation noise
-0.05, `gru` the recurrent policy, `10k`/`30k` longer training. One JSON file per run (a run already
+0.05, `gru` the recurrent policy (10-step windows), `gru50` with windows of the whole 50-step demo
+(batches of 64 windows), `10k`/`30k` longer training. One JSON file per run (a run already
 done is skipped), and a line per run as it finishes.
 """
 
@@ -31,6 +32,7 @@ VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
     "dart-5k-512x3": ("dart", 5000, {"hidden": 512, "layers": 3}, {}),
     "dart-5k-on05": ("dart", 5000, {}, {"obs_noise": 0.05}),
     "dart-5k-gru": ("dart", 5000, {"kind": "gru"}, {}),
+    "dart-5k-gru50": ("dart", 5000, {"kind": "gru", "seq_len": 50}, {"batch_size": 64}),
 }
 """variant: (recording, gradient steps, policy settings, training settings)."""
 

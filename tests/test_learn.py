@@ -303,3 +303,14 @@ def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  
         assert len(ds.demo_names) == 4 and {ds.attrs(n)["device"] for n in ds.demo_names} == {"gamepad"}
     assert _train(tmp_path / "human", tmp_path / "run", "--steps", "100") == 0
     assert main(["eval", str(tmp_path / "run"), "--episodes", "4", "--envs", "4"]) == 0
+
+
+def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    from fetch.learn import MEASURED_POLICY, policy_for
+    from fetch.learn.runtime import load
+    from fetch.tasks import ENV_IDS
+
+    assert set(MEASURED_POLICY) <= set(ENV_IDS), "every exception names a registered task"
+    assert policy_for("Drawer-close-v2") == "mlp-chunk" and policy_for("Reach-v2") == "gru"
+    assert _train(reach, tmp_path / "run", "--steps", "20") == 0  # --policy auto
+    assert load(tmp_path / "run").config.kind == policy_for("Reach-v2")

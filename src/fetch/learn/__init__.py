@@ -13,6 +13,17 @@ if TYPE_CHECKING:
 TORCH_INSTALL = 'pip install "gym-fetch-v2[train]"'
 POLICY_KINDS = ("mlp-chunk", "gru")
 """`--policy` choices (the networks are in `policies.POLICIES`, which imports torch)."""
+DEFAULT_POLICY = "gru"
+MEASURED_POLICY: dict[str, str] = {"Drawer-close-v2": "mlp-chunk", "Push-v2": "mlp-chunk"}
+"""Tasks whose best policy is not `DEFAULT_POLICY`, by measurement (docs/learning_curves.md, 100 DART
+demos): on Drawer-close gru hovers over the handle and never pushes (0 % against mlp-chunk's 100 %),
+whose action chunks carry the timing of the push; on Push the two tie (57 and 59 %) and mlp-chunk
+trains ~7x faster."""
+
+
+def policy_for(env_id: str) -> str:
+    """The policy `gym-fetch train --policy auto` trains on a dataset of `env_id`."""
+    return MEASURED_POLICY.get(env_id, DEFAULT_POLICY)
 
 
 def require_torch() -> None:
@@ -32,4 +43,4 @@ def load(run: str | os.PathLike[str]) -> Policy:
     return load_run(run)
 
 
-__all__ = ["POLICY_KINDS", "TORCH_INSTALL", "load", "require_torch"]
+__all__ = ["DEFAULT_POLICY", "MEASURED_POLICY", "POLICY_KINDS", "TORCH_INSTALL", "load", "policy_for", "require_torch"]

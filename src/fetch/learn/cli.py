@@ -7,7 +7,7 @@ import json
 import pathlib
 
 from fetch.errors import FetchError
-from fetch.learn import POLICY_KINDS, require_torch
+from fetch.learn import MEASURED_POLICY, POLICY_KINDS, policy_for, require_torch
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
@@ -15,10 +15,11 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, metavar="RUN",
                    help="the run directory: its checkpoint.pt is written atomically every --checkpoint-every steps; "
                         "run the same command again to resume a run that was stopped")
-    p.add_argument("--policy", default="gru", choices=POLICY_KINDS,
-                   help="gru (default): a recurrent policy (BC-RNN), the best on every task but Push in "
-                        "docs/learning_curves.md; mlp-chunk: an MLP predicting chunks of actions with ACT's temporal "
-                        "ensembling, ~7x faster to train")
+    p.add_argument("--policy", default="auto", choices=("auto", *POLICY_KINDS),
+                   help="auto (default): the policy measured best on the dataset's task, gru but for "
+                        f"{', '.join(sorted(MEASURED_POLICY))} (mlp-chunk; docs/learning_curves.md); gru: a "
+                        "recurrent policy (BC-RNN); mlp-chunk: an MLP predicting chunks of actions with ACT's "
+                        "temporal ensembling, ~7x faster to train")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial weights and the batches (default 0)")
     length = p.add_mutually_exclusive_group()
     length.add_argument("--steps", type=int, default=None, help="gradient steps (default 5000)")
@@ -45,15 +46,18 @@ def run_train(args: argparse.Namespace) -> int:
     from fetch.learn.policies import KIND_DEFAULTS
     from fetch.learn.train import TrainConfig, train
 
-    policy = {"kind": args.policy, **KIND_DEFAULTS.get(args.policy, {})}
+    demos = load_demos(args.dataset)
+    kind = policy_for(demos.env_id) if args.policy == "auto" else args.policy
+    policy = {"kind": kind, **KIND_DEFAULTS.get(kind, {})}
     for name in ("chunk", "seq_len", "hidden", "layers"):
         if getattr(args, name) is not None:
             policy[name] = getattr(args, name)
-    if args.policy == "gru" and args.chunk is not None:
-        raise FetchError("--chunk is for --policy mlp-chunk; gru predicts one action per step")
-    if args.policy == "mlp-chunk" and args.seq_len is not None:
-        raise FetchError("--seq-len is for --policy gru; mlp-chunk reads one observation")
-    demos = load_demos(args.dataset)
+    if kind == "gru" and args.chunk is not None:
+        raise FetchError(f"--chunk is for --policy mlp-chunk; {args.policy} trains gru here, which predicts one "
+                         "action per step")
+    if kind == "mlp-chunk" and args.seq_len is not None:
+        raise FetchError(f"--seq-len is for --policy gru; {args.policy} trains mlp-chunk here, which reads one "
+                         "observation")
     steps = args.steps if args.steps is not None else 5000
     if args.epochs is not None:
         if args.epochs < 1:
@@ -67,7 +71,7 @@ def run_train(args: argparse.Namespace) -> int:
     result = train(demos, args.out, policy, config)
     valid = "none (no valid split)" if result.valid_loss is None else f"{result.valid_loss:.4f}"
     resumed = f", resumed at step {result.resumed_from}" if result.resumed_from else ""
-    print(f"trained {args.policy} on {len(demos.train[:args.demos or None])} {demos.env_id} demos for {result.steps} "
+    print(f"trained {kind} on {len(demos.train[:args.demos or None])} {demos.env_id} demos for {result.steps} "
           f"steps{resumed}: train loss {result.train_loss:.4f}, valid loss {valid}; "
           f"evaluate with: gym-fetch eval {args.out}")
     return 0
