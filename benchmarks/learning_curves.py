@@ -10,10 +10,11 @@ evaluates 100 episodes on seeds disjoint from the data's; its result is one JSON
 half-trained one resumes from its checkpoint). After every run it rewrites the markdown table
 (`docs/learning_curves.md`) and the plot (`docs/images/learning_curves.png`) from the results so far.
 
-Recordings: `stop` is `gym-fetch collect --device expert` as it is (the attempt ends 10 steps after
-success), `hold` adds `--no-stop-on-success` (every demo runs the 50-step horizon), `dart` records
-the expert under injected Gaussian action noise (std `DART_STD`) and trains on the expert's clean
-action at every visited state (DART: Laskey et al. 2017), with demos running the horizon as in hold.
+Recordings, each made once by `gym-fetch collect --device expert` with the flags in `RECORDINGS`:
+`dart` is the collector's default (the executed action perturbed by N(0, 0.1), the expert's clean
+action recorded as `expert_actions` and learned; DART: Laskey et al. 2017; demos run the 50-step
+horizon), `stop` the plain expert ending 10 steps after success (the collector's default before),
+`hold` the plain expert running the horizon, `dartstop` DART ending at success.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -38,9 +39,15 @@ ALL_TASKS = ("Bin-pick-v2", "Bin-place-v2", "Box-open-v2", "Box-close-v2", "Draw
 CURVE_DEMOS = (10, 30, 100, 300)
 SEEDS = (0, 1, 2)
 EPISODES = 100
-RECORDINGS = ("stop", "hold", "dart")
-DART_STD = 0.1
-"""Std of the executed action's noise under DART (the expert table's noise level)."""
+RECORDINGS: dict[str, tuple[str, ...]] = {
+    "stop": ("--expert-noise", "0", "--stop-on-success"),
+    "hold": ("--expert-noise", "0", "--no-stop-on-success"),
+    "dart": (),
+    "dartstop": ("--stop-on-success",),
+}
+"""`collect --device expert --max-steps 50` flags of each recording ("dart": the collector's defaults)."""
+COMPARED = ("stop", "hold", "dart")
+"""The recordings the comparison table shows."""
 POLICY_VARIANTS: dict[str, dict[str, Any]] = {
     "mlp-chunk": {"kind": "mlp-chunk"},
     "mlp": {"kind": "mlp-chunk", "chunk": 1},
@@ -97,78 +104,13 @@ def collected(results: pathlib.Path, task: str, recording: str, demos: int) -> p
     partial = results / "data" / f".{done.name}.partial"
     shutil.rmtree(partial, ignore_errors=True)
     partial.parent.mkdir(parents=True, exist_ok=True)
-    if recording == "dart":
-        collect_dart(task, size, partial)
-    else:
-        cmd = [sys.executable, "-m", "fetch.cli", "collect", "--env", task, "--device", "expert", "--episodes",
-               str(size), "--render", "none", "--max-steps", "50", "--out", str(partial)]
-        if recording == "hold":
-            cmd.append("--no-stop-on-success")
-        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    cmd = [sys.executable, "-m", "fetch.cli", "collect", "--env", task, "--device", "expert", "--episodes",
+           str(size), "--render", "none", "--max-steps", "50", "--out", str(partial), *RECORDINGS[recording]]
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
     with open_dataset(partial) as ds:
         assert len(ds.masks()["train"]) >= demos, (task, recording, len(ds.masks()["train"]))
     partial.rename(done)
     return done
-
-
-class NoisyExpert:
-    """The expert as a collection device whose executed action carries Gaussian noise (DART)."""
-
-    name = "expert"
-
-    def __init__(self, env_id: str, std: float, seed: int) -> None:
-        from fetch.experts import make_expert
-
-        self.expert = make_expert(env_id)
-        self.std = std
-        self.rng = np.random.default_rng(seed)
-
-    def reset(self) -> None:
-        self.expert.reset()
-
-    def poll(self, obs: Mapping[str, np.ndarray]) -> Any:
-        from fetch.teleop.devices import Command
-
-        clean = np.asarray(self.expert(obs), np.float64)
-        noisy = np.clip(clean + self.rng.normal(0.0, self.std, clean.shape), -1.0, 1.0)
-        return Command(noisy.astype(np.float32))
-
-    def close(self) -> None:
-        pass
-
-
-def collect_dart(task: str, size: int, out: pathlib.Path) -> None:
-    """`size` successful demos of the noisy expert through the real collector (replayable: the executed
-    actions are recorded); `relabelled` later swaps in the clean labels."""
-    from fetch.teleop.session import CollectConfig, Session
-
-    config = CollectConfig(task, out=str(out), episodes=size, max_steps=50, stop_on_success=False,
-                           device="expert", render="none")
-    Session(config, NoisyExpert(task, DART_STD, seed=0), log=lambda _: None).run()
-
-
-def relabelled(path: pathlib.Path) -> Any:
-    """The demos of `path` with every action replaced by the expert's for the recorded observations
-    (the expert reads only the observation, so re-running it along the demo gives what it said then)."""
-    from fetch.dataset import open_dataset
-    from fetch.dataset.schema import OBS_KEYS
-    from fetch.experts import make_expert
-    from fetch.learn.data import load_demos
-
-    demos = load_demos(path)
-    with open_dataset(path) as ds:
-        expert = make_expert(ds.env_id)
-
-        def clean(episode: Any) -> Any:
-            arrays = ds.arrays(episode.name)
-            expert.reset()
-            actions = np.stack([np.asarray(expert({k: arrays[f"obs/{k}"][t] for k in OBS_KEYS}), np.float32)
-                                for t in range(len(episode.actions))])
-            return dataclasses.replace(episode, actions=actions)
-
-        return dataclasses.replace(demos, origin=demos.origin + " (actions relabelled by the expert)",
-                                   train=tuple(clean(e) for e in demos.train),
-                                   valid=tuple(clean(e) for e in demos.valid))
 
 
 def run(job: Job, results: pathlib.Path, steps: int) -> dict[str, Any]:
@@ -177,8 +119,7 @@ def run(job: Job, results: pathlib.Path, steps: int) -> dict[str, Any]:
     from fetch.learn.policies import KIND_DEFAULTS
     from fetch.learn.train import TrainConfig, train
 
-    data = collected(results, job.task, job.recording, job.demos)
-    dataset: Any = relabelled(data) if job.recording == "dart" else data
+    dataset = collected(results, job.task, job.recording, job.demos)
     policy = dict(POLICY_VARIANTS[job.policy])
     policy = {**KIND_DEFAULTS.get(policy["kind"], {}), **policy}
     config = TrainConfig(steps=steps, seed=job.seed, demos=job.demos)
@@ -259,10 +200,10 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
     lines += ["", "## How the demos are recorded (100 demos)", "",
               "stop: the attempt ends 10 steps after success (the collector's default); hold: "
               "`--no-stop-on-success`, every demo runs the 50-step horizon; dart: as hold, the executed action "
-              f"perturbed by N(0, {DART_STD}) noise and the expert's clean action as the label.", "",
-              "| task | " + " | ".join(RECORDINGS) + " |", "|---|" + "---|" * len(RECORDINGS)]
+              "perturbed by N(0, 0.1) noise and the expert's clean action as the label.", "",
+              "| task | " + " | ".join(COMPARED) + " |", "|---|" + "---|" * len(COMPARED)]
     for task in CURVE_TASKS:
-        cells = [_cell(pick(task=task, recording=rec, policy="mlp-chunk", demos=100)) for rec in RECORDINGS]
+        cells = [_cell(pick(task=task, recording=rec, policy="mlp-chunk", demos=100)) for rec in COMPARED]
         lines.append(f"| `{task}` | " + " | ".join(cells) + " |")
     lines += ["", "## Policies (100 stop-at-success demos)", "",
               "mlp-chunk: 10-action chunks with temporal ensembling; mlp: one action (plain BC); gru: recurrent.", "",
@@ -367,7 +308,8 @@ def choices_table(results: pathlib.Path) -> str:
     lines = ["## Choosing the defaults (`benchmarks/train_choices.py`, 100 DART demos, one training seed)", "",
              "Each variant changes one thing from `dart-5k` (mlp-chunk, 5000 steps): `dartstop` demos end 10 steps "
              "after success; `c20` 20-action chunks; `512x3` a wider, deeper MLP; `on05` observation noise 0.05; "
-             "`gru` the recurrent policy (128 units, windows of 10 steps); `10k`/`30k` longer training. "
+             "`gru` the recurrent policy (128 units, windows of 10 steps); `gru50` with windows of the whole 50-step "
+             "demo (batches of 64); `10k`/`30k` longer training. "
              "Success % over 100 episodes; the last row is the mean training CPU time.", "",
              "| task | " + " | ".join(variants) + " |", "|---|" + "---|" * len(variants)]
     for task in tasks:

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import pathlib
-import shutil
 import sys
 import time
 from typing import Any
@@ -37,21 +36,6 @@ VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
 """variant: (recording, gradient steps, policy settings, training settings)."""
 
 
-def dart_stop(results: pathlib.Path, task: str) -> pathlib.Path:
-    """120 DART demos that end 10 steps after success (the collector's ending for a person)."""
-    from fetch.teleop.session import CollectConfig, Session
-
-    done = results / "data" / f"{task}__dartstop"
-    if done.exists():
-        return done
-    partial = results / "data" / f".{task}__dartstop.partial"
-    shutil.rmtree(partial, ignore_errors=True)
-    config = CollectConfig(task, out=str(partial), episodes=120, max_steps=50, device="expert", render="none")
-    Session(config, lc.NoisyExpert(task, lc.DART_STD, seed=0), log=lambda _: None).run()
-    partial.rename(done)
-    return done
-
-
 def run(results: pathlib.Path, task: str, variant: str) -> dict[str, Any] | None:
     from fetch.learn import load
     from fetch.learn.evaluate import evaluate
@@ -62,12 +46,12 @@ def run(results: pathlib.Path, task: str, variant: str) -> dict[str, Any] | None
     if target.exists():
         return None
     recording, steps, net, extra = VARIANTS[variant]
-    data = lc.collected(results, task, "dart", 100) if recording == "dart" else dart_stop(results, task)
+    data = lc.collected(results, task, recording, 100)
     kind = net.get("kind", "mlp-chunk")
     policy = {**KIND_DEFAULTS.get(kind, {}), "kind": kind, **net}
     config = TrainConfig(steps=steps, seed=0, demos=100, **extra)
     start, cpu = time.perf_counter(), time.process_time()
-    trained = train(lc.relabelled(data), results / "choices_runs" / f"{task}__{variant}", policy, config,
+    trained = train(data, results / "choices_runs" / f"{task}__{variant}", policy, config,
                     log=lambda _: None, show_progress=False)
     out = {"task": task, "variant": variant, "train_seconds": time.perf_counter() - start,
            "train_cpu_seconds": time.process_time() - cpu, "valid_loss": trained.valid_loss,
