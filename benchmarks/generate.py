@@ -3,7 +3,10 @@
 For each task, 10 source demos are recorded by the scripted expert and, separately, by an imperfect
 operator (the expert with Gaussian action noise, standing in for a person); from each set, 1000
 demos are generated with 2 workers. Then, on a few tasks, the same generation with 1 and with 2
-workers gives the scaling efficiency (demos/min with 2) / (2 x demos/min with 1).
+workers gives the scaling efficiency (demos/min with 2) / (2 x demos/min with 1). With `--train` (run it
+with the train extra installed), a policy is then trained per task on the 1000 generated demos and on the
+10 sources alone, with learning_curves.py's harness, and set beside learning_curves.py's 100-expert-demo
+result (`--curves`).
 
 Resumable: every result is appended to `<out>/results.jsonl` as it is measured and skipped when the
 benchmark runs again (a generation stopped midway resumes where it was). Prints a table.
@@ -133,6 +136,13 @@ def main() -> None:
     p.add_argument("--noisy-demos", type=int, default=None, help="demos per task from the noisy sources "
                    "(default: --demos)")
     p.add_argument("--scaling-demos", type=int, default=300)
+    p.add_argument("--train", action="store_true",
+                   help="then train and evaluate a policy (`gym-fetch train`'s default, learning_curves.py's harness) "
+                        "on each task's generated demos and on its 10 sources alone (needs the train extra)")
+    p.add_argument("--curves", default="/tmp/gym-fetch-learning-curves",
+                   help="learning_curves.py's results, for the 100-expert-demo column (default %(default)s)")
+    p.add_argument("--shard", default="0/1", metavar="K/N", help="with --train: train only the tasks of shard K "
+                   "of N, e.g. 0/2 and 1/2 in two processes (default %(default)s)")
     args = p.parse_args()
     root = pathlib.Path(args.out)
     root.mkdir(parents=True, exist_ok=True)
@@ -141,6 +151,9 @@ def main() -> None:
     tasks = args.tasks.split(",")
     operators = args.operators.split(",")
     print(f"machine: {os.cpu_count()} cores, load {os.getloadavg()}", flush=True)
+    shard, shards = (int(x) for x in args.shard.split("/"))
+    if shards > 1:
+        tasks = [t for i, t in enumerate(tasks) if i % shards == shard]
     for operator in operators:
         for env_id in tasks:
             source = root / f"src-{operator}-{env_id}"
@@ -155,7 +168,61 @@ def main() -> None:
                     print(f"{env_id} scaling, {workers} worker(s)", flush=True)
                     measure(f"scaling/{env_id}/{workers}", results, path, source,
                             root / f"scale{workers}-{env_id}", args.scaling_demos, workers)
+    if args.train:
+        for env_id in tasks:
+            for kind in TRAINED:
+                trained(env_id, kind, root, results, path)
     print_table(results, tasks, operators)
+    print_policies(results, tasks, pathlib.Path(args.curves))
+
+
+TRAINED = ("generated", "sources")
+"""What a policy is trained on per task: the 1000 demos generated from the expert's 10, or those 10 alone."""
+
+
+def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[str, Any]],
+            path: pathlib.Path) -> dict[str, Any]:
+    """Train `gym-fetch train`'s default policy for the task on `kind` and evaluate it (one training seed)."""
+    key = f"policy/{kind}/{env_id}"
+    if key in results:
+        return results[key]
+    from fetch.learn import policy_for
+    from fetch.learn.train import TrainConfig
+    from learning_curves import train_and_evaluate  # the same harness as the 100-expert-demo figures
+
+    dataset = root / (f"gen-expert-{env_id}" if kind == "generated" else f"src-expert-{env_id}")
+    policy = policy_for(env_id)
+    outcome = train_and_evaluate(dataset, root / "runs" / f"{kind}-{env_id}", policy, 0, TrainConfig().steps)
+    row = {"key": key, "task": env_id, "trained_on": kind, "policy": policy, **outcome,
+           "load": os.getloadavg()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    with path.open("a") as f:
+        f.write(json.dumps(row) + "\n")
+    results[key] = row
+    print(f"  {key}: {100 * row['success_rate']:.0f}% ({policy}, train {row['train_seconds']:.0f} s)", flush=True)
+    return row
+
+
+def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves: pathlib.Path) -> None:
+    """Policy success trained on generated demos, on their sources, and (from learning_curves.py) on 100 expert
+    demos; the bar is generated >= expert-100."""
+    if not any(f"policy/{kind}/{t}" in results for kind in TRAINED for t in tasks):
+        return
+    from fetch.learn import policy_for
+
+    print("\n| task | policy | 1000 generated | 10 sources | 100 expert (DART, learning_curves.py) | "
+          "generated >= expert-100 |")
+    print("|---|---|---|---|---|---|")
+    for env_id in tasks:
+        cells = [f"{100 * row['success_rate']:.0f}" if (row := results.get(f"policy/{kind}/{env_id}")) else "-"
+                 for kind in TRAINED]
+        policy = policy_for(env_id)
+        expert = [json.loads(p.read_text())["success_rate"]
+                  for p in sorted((curves / "results").glob(f"{env_id}__dart__{policy}__n100__s*.json"))]
+        reference = f"{100 * np.mean(expert):.0f} ({len(expert)} seeds)" if expert else "-"
+        verdict = ""
+        if expert and (row := results.get(f"policy/generated/{env_id}")):
+            verdict = "yes" if row["success_rate"] >= np.mean(expert) else "no"
+        print(f"| `{env_id}` | {policy} | {cells[0]} | {cells[1]} | {reference} | {verdict} |")
 
 
 def print_table(results: dict[str, dict[str, Any]], tasks: list[str], operators: list[str]) -> None:

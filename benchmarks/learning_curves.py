@@ -114,22 +114,30 @@ def collected(results: pathlib.Path, task: str, recording: str, demos: int) -> p
 
 
 def run(job: Job, results: pathlib.Path, steps: int) -> dict[str, Any]:
+    dataset = collected(results, job.task, job.recording, job.demos)
+    outcome = train_and_evaluate(dataset, results / "runs" / job.name, job.policy, job.seed, steps, job.demos)
+    return {**dataclasses.asdict(job), **outcome}
+
+
+def train_and_evaluate(dataset: pathlib.Path, run_dir: pathlib.Path, policy_name: str, seed: int, steps: int,
+                       demos: int = 0) -> dict[str, Any]:
+    """Train `policy_name` (a `POLICY_VARIANTS` key) on the first `demos` of the dataset's mask/train (0:
+    all) and evaluate it on `EPISODES` seeds disjoint from the data's: the one harness every benchmark uses."""
     from fetch.learn import load
     from fetch.learn.evaluate import evaluate
     from fetch.learn.policies import KIND_DEFAULTS
     from fetch.learn.train import TrainConfig, train
 
-    dataset = collected(results, job.task, job.recording, job.demos)
-    policy = dict(POLICY_VARIANTS[job.policy])
+    policy = dict(POLICY_VARIANTS[policy_name])
     policy = {**KIND_DEFAULTS.get(policy["kind"], {}), **policy}
-    config = TrainConfig(steps=steps, seed=job.seed, demos=job.demos)
+    config = TrainConfig(steps=steps, seed=seed, demos=demos)
     start, cpu = time.perf_counter(), time.process_time()
-    trained = train(dataset, results / "runs" / job.name, policy, config, log=lambda _: None, show_progress=False)
+    trained = train(dataset, run_dir, policy, config, log=lambda _: None, show_progress=False)
     train_s, train_cpu = time.perf_counter() - start, time.process_time() - cpu
     start, cpu = time.perf_counter(), time.process_time()
     outcome = evaluate(load(trained.run), EPISODES)
     # CPU seconds are what a run costs on an idle machine; wall seconds here include the other work.
-    return {**dataclasses.asdict(job), "policy_settings": policy, "train": dataclasses.asdict(config),
+    return {"policy_settings": policy, "train": dataclasses.asdict(config),
             "steps": steps, "train_seconds": train_s, "train_cpu_seconds": train_cpu,
             "resumed_from": trained.resumed_from, "eval_seconds": time.perf_counter() - start,
             "eval_cpu_seconds": time.process_time() - cpu,
