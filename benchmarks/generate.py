@@ -110,12 +110,17 @@ def measure(key: str, results: dict[str, dict[str, Any]], path: pathlib.Path, so
            "cpu_per_demo": (_cpu_seconds() - cpu) / summary.saved if summary.saved else 0.0,
            "run_demos": summary.saved, "seconds": summary.seconds, "workers": summary.workers,
            "load": os.getloadavg()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    with path.open("a") as f:
-        f.write(json.dumps(row) + "\n")
-    results[key] = row
+    keep(row, results, path)
     print(f"  {key}: {row['success']:.1%} success, {row['per_min']:.0f} demos/min, load {row['load']:.1f}",
           flush=True)
     return row
+
+
+def keep(row: dict[str, Any], results: dict[str, dict[str, Any]], path: pathlib.Path) -> None:
+    """Append a measured row to results.jsonl (what a resumed run skips) and to `results`."""
+    with path.open("a") as f:
+        f.write(json.dumps(row) + "\n")
+    results[row["key"]] = row
 
 
 def _cpu_seconds() -> float:
@@ -141,8 +146,9 @@ def main() -> None:
                         "on each task's generated demos and on its 10 sources alone (needs the train extra)")
     p.add_argument("--curves", default="/tmp/gym-fetch-learning-curves",
                    help="learning_curves.py's results, for the 100-expert-demo column (default %(default)s)")
-    p.add_argument("--shard", default="0/1", metavar="K/N", help="with --train: train only the tasks of shard K "
-                   "of N, e.g. 0/2 and 1/2 in two processes (default %(default)s)")
+    p.add_argument("--shard", default="0/1", metavar="K/N", help="run only the tasks of shard K of N (their "
+                   "sources, generation and, with --train, policies), e.g. 0/2 and 1/2 in two processes (default "
+                   "%(default)s)")
     args = p.parse_args()
     root = pathlib.Path(args.out)
     root.mkdir(parents=True, exist_ok=True)
@@ -195,9 +201,7 @@ def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[
     outcome = train_and_evaluate(dataset, root / "runs" / f"{kind}-{env_id}", policy, 0, TrainConfig().steps)
     row = {"key": key, "task": env_id, "trained_on": kind, "policy": policy, **outcome,
            "load": os.getloadavg()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    with path.open("a") as f:
-        f.write(json.dumps(row) + "\n")
-    results[key] = row
+    keep(row, results, path)
     print(f"  {key}: {100 * row['success_rate']:.0f}% ({policy}, train {row['train_seconds']:.0f} s)", flush=True)
     return row
 
@@ -208,7 +212,9 @@ def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves:
     if not any(f"policy/{kind}/{t}" in results for kind in TRAINED for t in tasks):
         return
     from fetch.learn import policy_for
+    from learning_curves import load_results as curve_results
 
+    curve_rows = curve_results(curves) if (curves / "results").is_dir() else []
     print("\n| task | policy | 1000 generated | 10 sources | 100 expert (DART, learning_curves.py) | "
           "generated >= expert-100 |")
     print("|---|---|---|---|---|---|")
@@ -216,12 +222,14 @@ def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves:
         cells = [f"{100 * row['success_rate']:.0f}" if (row := results.get(f"policy/{kind}/{env_id}")) else "-"
                  for kind in TRAINED]
         policy = policy_for(env_id)
-        expert = [json.loads(p.read_text())["success_rate"]
-                  for p in sorted((curves / "results").glob(f"{env_id}__dart__{policy}__n100__s*.json"))]
-        reference = f"{100 * np.mean(expert):.0f} ({len(expert)} seeds)" if expert else "-"
-        verdict = ""
-        if expert and (row := results.get(f"policy/generated/{env_id}")):
-            verdict = "yes" if row["success_rate"] >= np.mean(expert) else "no"
+        expert = [r["success_rate"] for r in curve_rows
+                  if (r["task"], r["recording"], r["policy"], r["demos"]) == (env_id, "dart", policy, 100)]
+        reference, verdict = "-", ""
+        if expert:
+            mean = float(np.mean(expert))
+            reference = f"{100 * mean:.0f} ({len(expert)} seeds)"
+            if row := results.get(f"policy/generated/{env_id}"):
+                verdict = "yes" if row["success_rate"] >= mean else "no"
         print(f"| `{env_id}` | {policy} | {cells[0]} | {cells[1]} | {reference} | {verdict} |")
 
 
