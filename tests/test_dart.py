@@ -92,9 +92,10 @@ def test_generation_with_noise_labels_the_planned_action(dart: pathlib.Path, tmp
         env = gym.make(ds.env_id)
         for name in ds.demo_names:
             arrays = ds.arrays(name)
-            noise = arrays["actions"][:, :3] - arrays["expert_actions"][:, :3]
-            assert float(np.abs(noise).max()) > 0.05
-            assert np.array_equal(arrays["actions"][:, 3], arrays["expert_actions"][:, 3]), "fingers: no noise"
+            noise = arrays["actions"] - arrays["expert_actions"]
+            assert float(np.abs(noise[:, :3]).max()) > 0.05
+            # The fingers are perturbed too (as the expert device does), so their labels show the servo's correction.
+            assert float(np.abs(noise[:, 3]).max()) > 0.05, "fingers: no noise"
             assert check_demo(ds, name, env.unwrapped).exact
 
 

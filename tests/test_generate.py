@@ -225,6 +225,27 @@ def test_resume_after_sigkill_gives_the_same_demos(source: pathlib.Path, serial:
     same_demos(serial, out)
 
 
+def test_demos_run_to_the_horizon_and_end_in_success_unless_told_to_stop(
+        source: pathlib.Path, serial: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """By default every generated demo runs the env's 50 steps, like the collector's expert demos, and
+    is kept only if success holds over its last 5; with --stop-on-success it ends where success had
+    held 5 steps (MimicGen's demos), so earlier."""
+    with open_dataset(serial) as ds:
+        assert ds.settings["stop_on_success"] is False
+        for name in ds.demo_names:
+            success = ds.arrays(name)["is_success"]
+            assert len(success) == 50, name
+            assert success[-5:].all(), name
+    stopped = tmp_path / "stopped"
+    assert main(gen_argv(source, stopped, 4, "--workers", "1", "--stop-on-success")) == 0
+    with open_dataset(stopped) as ds:
+        assert ds.settings["stop_on_success"] is True
+        for name in ds.demo_names:
+            success = ds.arrays(name)["is_success"]
+            assert len(success) < 50, name
+            assert success[-5:].all() and not success[:-5].all(), name
+
+
 def test_resume_with_other_settings_is_refused(source: pathlib.Path, serial: pathlib.Path,
                                                tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "other"

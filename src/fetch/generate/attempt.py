@@ -16,6 +16,7 @@ import numpy as np
 from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.formats import recorded_layout
 from fetch.errors import FetchError, UnknownNameError
+from fetch.experts.base import Expert
 from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
 from fetch.robot import ACTION_STEP
 from fetch.tasks.subtasks import Frame, Scene
@@ -32,11 +33,17 @@ class Options:
     max_steps: int
     """steps per attempt at most."""
     success_hold_steps: int = 5
-    """an attempt succeeds once `is_success` has held this many consecutive steps (and stops there)."""
+    """an attempt succeeds if `is_success` holds over its last this many steps (with `stop_on_success`: once
+    it has held this long, and stops there)."""
+    stop_on_success: bool = False
+    """end an attempt once it has succeeded (MimicGen's demos end there). By default every attempt runs to
+    `max_steps`, the last source segment to its source demo's end and then holding still, as the
+    collector's expert demos do: a policy trained on demos that stop at success never sees what to do after
+    it, and undoes it (Bin-place-v2: 4 % success from 1000 such demos, the object placed and then lost)."""
     selection: str = "nearest"
     nearest_k: int = 3
     noise: float = 0.1
-    """standard deviation of Gaussian noise added to the executed a[:3], in action units, the clean
+    """standard deviation of Gaussian noise added to the executed action (all four), in action units, the clean
     action being recorded as `expert_actions` (DART; what training learns). MimicGen adds 0.05 and
     trains on the noisy actions; that cut a policy trained on the result from 94 % to 74 %
     (PickPlace-v2, docs/generate.md)."""
@@ -57,6 +64,10 @@ class Options:
             raise FetchError(f"--noise must be a finite standard deviation >= 0, got {self.noise}")
         if not 0 < self.transit_speed <= 1 or not 0 <= self.blend_fraction <= 1:
             raise FetchError("transit_speed must be in (0, 1] and blend_fraction in [0, 1]")
+
+
+SQUEEZE = -0.5
+"""A source's a[3] at or below this closes the fingers on something: kept as it is, not servoed."""
 
 
 class Result(NamedTuple):
@@ -94,6 +105,7 @@ class Generator:
         self.seed = seed
         self.scene = Scene(base.model)
         self.buffer = EpisodeBuffer(recorded_layout(self.env), capacity=options.max_steps)
+        self._obs: dict[str, np.ndarray] = {}  # the env's latest observation
         self._start_in_frame = [np.stack([s[k].hand_in_frame() for s in sources]) for k in range(len(self.subtasks))]
 
     def choose(self, k: int, frame: Frame, held: np.ndarray, rng: np.random.Generator) -> Segment:
@@ -105,8 +117,10 @@ class Generator:
         nearest = np.argsort(distance, kind="stable")[: self.options.nearest_k]
         return self.sources[int(nearest[int(rng.integers(len(nearest)))])][k]
 
-    def plan(self, segment: Segment, frame: Frame, held: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Targets (N, 3) [m] and finger commands (N,): the segment carried over to `frame`, with the
+    def plan(self, segment: Segment, frame: Frame,
+             held: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Targets (N, 3) [m], finger commands (N,) and the finger openings they led to in the source
+        (N,) [m] or None: the segment carried over to `frame`, with the
         hand's offset from its start blended out (MimicGen interpolates first; we spread the offset
         over the segment's approach, and prepend steps only when that would be too fast)."""
         o = self.options
@@ -121,7 +135,9 @@ class Generator:
             np.zeros(n_pre + segment.length)
         path = np.concatenate([np.repeat(start[None], n_pre, axis=0), moved]) + weights[:, None] * offset
         grips = np.concatenate([np.full(n_pre, segment.grips[0]), segment.grips])
-        return path, grips
+        openings = None if segment.openings is None else \
+            np.concatenate([np.full(n_pre, segment.openings[0]), segment.openings])
+        return path, grips, openings
 
     def attempt(self, number: int) -> Result:
         """Attempt `number`: reset with seed + number, execute one segment per subtask."""
@@ -129,31 +145,38 @@ class Generator:
         seed = self.seed + number
         rng = rng_for(self.seed, number)
         obs, info = env.reset(seed=seed)
+        self._obs = obs
         buf.begin(obs, base.get_state())
         started = time.time()
-        held_for, steps, grip = 0, 0, 0.0
+        held_for, steps, grip, opening = 0, 0, 0.0, None
         choices: list[tuple[str, int, int]] = []
         success = False
         target = held_grip(base)
         for k, subtask in enumerate(self.subtasks):
-            if success or steps >= o.max_steps:
+            if steps >= o.max_steps or (success and o.stop_on_success):
                 break
             held = held_grip(base)
             frame = subtask.frame(self.scene, base.data)
             segment = self.choose(k, frame, held, rng)
             choices.append((segment.demo, segment.start, segment.end))
-            path, grips = self.plan(segment, frame, held)
-            for target, grip in zip(path, grips, strict=True):
-                success, held_for = self._step(target, grip, rng, held_for)
+            path, grips, openings = self.plan(segment, frame, held)
+            for i, (target, grip) in enumerate(zip(path, grips, strict=True)):
+                opening = None if openings is None else float(openings[i])
+                success, held_for = self._step(target, grip, opening, rng, held_for)
                 steps += 1
-                if success or steps >= o.max_steps:
+                if steps >= o.max_steps or (success and o.stop_on_success):
                     break
-        # The source's last segment ends when its success had held; give ours a few steps more.
-        extra = 2 * o.success_hold_steps
-        while not success and steps < o.max_steps and extra > 0:
-            success, held_for = self._step(target, grip, rng, held_for)
-            steps += 1
-            extra -= 1
+        if o.stop_on_success:
+            # The source's last segment ends when its success had held; give ours a few steps more.
+            extra = 2 * o.success_hold_steps
+            while not success and steps < o.max_steps and extra > 0:
+                success, held_for = self._step(target, grip, opening, rng, held_for)
+                steps += 1
+                extra -= 1
+        else:  # to the horizon, holding the last target; judged by the last steps
+            while steps < o.max_steps:
+                success, held_for = self._step(target, grip, opening, rng, held_for)
+                steps += 1
         demo = None
         if success:
             demo = buf.demo({"seed": seed, "success": True, "env_id": self.env_id, "device": "generate",
@@ -163,21 +186,35 @@ class Generator:
             demo.arrays["subtasks"] = labels
         return Result(number, seed, success, steps, tuple(choices), demo)
 
-    def _step(self, target: np.ndarray, grip: float, rng: np.random.Generator, held_for: int) -> tuple[bool, int]:
+    def _step(self, target: np.ndarray, grip: float, opening: float | None, rng: np.random.Generator,
+              held_for: int) -> tuple[bool, int]:
         base, buf = self.base, self.buffer
         move = (target - held_grip(base)) / ACTION_STEP
-        clean = np.append(np.clip(move, -1.0, 1.0), np.clip(grip, -1.0, 1.0)).astype(np.float32)
+        clean = np.append(np.clip(move, -1.0, 1.0), self._fingers(grip, opening)).astype(np.float32)
         action, label = clean, None
         if self.options.noise:  # DART: execute a perturbed action, label the clean one (`expert_actions`)
+            noise = rng.normal(0.0, self.options.noise, 4)  # on the fingers too, as the expert device does
             action = clean.copy()
-            action[:3] = np.clip(move + rng.normal(0.0, self.options.noise, 3), -1.0, 1.0)
+            action[:3] = np.clip(move + noise[:3], -1.0, 1.0)
+            action[3] = np.clip(clean[3] + noise[3], -1.0, 1.0)
             label = clean
         obs, reward, terminated, truncated, info = self.env.step(action)
+        self._obs = obs
         base.get_state(out=buf.state_row())
         ok = info["is_success"] >= 1.0
         buf.record(base.last_action, obs, float(reward), terminated, truncated, ok, time.time(), label)
         held_for = held_for + 1 if ok else 0
         return held_for >= self.options.success_hold_steps, held_for
+
+    def _fingers(self, grip: float, opening: float | None) -> float:
+        """The clean a[3]. A squeeze (the source closing on or holding something) as the source gave it;
+        otherwise the expert's finger servo towards the opening the source's command led to, so that a
+        finger the noise moved is brought back and the label says how (replaying the source's own
+        commands, the fingers of a policy trained on the result drifted open and never grasped:
+        Box-close-v2, 1 % success from 1000 demos)."""
+        if opening is None or grip <= SQUEEZE:
+            return float(np.clip(grip, -1.0, 1.0))
+        return Expert.finger_servo(self._obs, self.base.observation_layout, opening)
 
     def close(self) -> None:
         self.env.close()

@@ -23,7 +23,12 @@ def add_generate_parser(sub: Any) -> None:
                    help="run attempts as Ray actors on a cluster (default address: auto, the cluster this "
                         "machine belongs to; 'local' starts one here)")
     g.add_argument("--max-steps", type=int, default=None, help="steps per attempt (default: the env's horizon)")
-    g.add_argument("--success-hold-steps", type=int, default=5, help="success must hold this long (default 5)")
+    g.add_argument("--success-hold-steps", type=int, default=5,
+                   help="success must hold over an attempt's last this many steps (default 5)")
+    g.add_argument("--stop-on-success", action=argparse.BooleanOptionalAction, default=False,
+                   help="end an attempt once success has held --success-hold-steps (MimicGen's demos end there; "
+                        "default off: every attempt runs to --max-steps, the last segment to its source's end and "
+                        "then holding still, so a policy learns to stay done)")
     g.add_argument("--selection", default="nearest", help="source segment choice: nearest (default) or random")
     g.add_argument("--nearest-k", type=int, default=3, help="choose among this many nearest segments (default 3)")
     g.add_argument("--noise", type=float, default=0.1,
@@ -50,7 +55,7 @@ def run_generate(args: argparse.Namespace) -> int:
             env_id = ds.env_id
         args.max_steps = int(gym.spec(env_id).max_episode_steps or 50)
     options = Options(max_steps=args.max_steps, success_hold_steps=args.success_hold_steps, selection=args.selection,
-                      nearest_k=args.nearest_k, noise=args.noise)
+                      nearest_k=args.nearest_k, noise=args.noise, stop_on_success=args.stop_on_success)
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
                             workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray)
     summary = generate(config)

@@ -89,7 +89,7 @@ class Summary:
 def settings_of(sources: Sources, options: Options, seed: int) -> dict[str, Any]:
     """What the dataset records as made it; a resumed run must match every field."""
     return {"max_steps": options.max_steps, "success_hold_steps": options.success_hold_steps,
-            "stop_on_success": True, "ignore_env_done": False,
+            "stop_on_success": options.stop_on_success, "ignore_env_done": False,
             "generate": {"source": sources.path, "source_fingerprint": sources.fingerprint,
                          "source_demos": len(sources.segments), "subtasks": list(sources.subtasks), "seed": seed,
                          **dataclasses.asdict(options)}}

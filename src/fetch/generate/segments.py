@@ -27,6 +27,9 @@ class Segment:
     """(L, 3) [m, world] each step's grip-site target: its reference plus 0.05 * a[:3]."""
     grips: np.ndarray
     """(L,) each step's a[3] (the fingers)."""
+    openings: np.ndarray | None
+    """(L,) [m] the fingers' mean opening after each step, what its a[3] led to (None: the task's
+    observation has no fingers)."""
     frame: Frame
     """the subtask's reference frame at the segment's start."""
     closest: int
@@ -110,8 +113,10 @@ def annotate(base: Any, subtasks: tuple[Subtask, ...], states: np.ndarray) -> An
     return Annotation(labels, tracker.complete and frames[-1] is not None, held, frames)
 
 
-def segments_of(name: str, annotation: Annotation, actions: np.ndarray) -> list[Segment]:
-    """A complete demo's segments, one per subtask (see `annotate`)."""
+def segments_of(name: str, annotation: Annotation, actions: np.ndarray,
+                openings: np.ndarray | None = None) -> list[Segment]:
+    """A complete demo's segments, one per subtask (see `annotate`); `openings` (T,) [m] is the fingers'
+    mean opening after each step."""
     out = []
     for k, (start, end) in enumerate(annotation.bounds()):
         frame = annotation.frames[k]
@@ -120,5 +125,6 @@ def segments_of(name: str, annotation: Annotation, actions: np.ndarray) -> list[
         targets = held + ACTION_STEP * actions[start:end, :3].astype(np.float64)
         closest = int(np.argmin(np.linalg.norm(targets - frame.pos, axis=1)))
         out.append(Segment(name, start, end, annotation.held[start].copy(), targets,
-                           actions[start:end, 3].astype(np.float64), frame, closest))
+                           actions[start:end, 3].astype(np.float64),
+                           None if openings is None else openings[start:end].astype(np.float64), frame, closest))
     return out

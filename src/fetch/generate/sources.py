@@ -8,6 +8,7 @@ import os
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from fetch.dataset.reader import open_dataset, require_valid
 from fetch.errors import FetchError
@@ -49,7 +50,7 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
             if not annotation.complete:
                 skipped.append(name)
                 continue
-            segments.append(tuple(segments_of(name, annotation, arrays["actions"])))
+            segments.append(tuple(segments_of(name, annotation, arrays["actions"], _openings(base, arrays))))
             digest.update(f"{name}:{attrs['seed']}".encode())
             digest.update(arrays["actions"].tobytes())
             digest.update(arrays["states"].tobytes())
@@ -59,3 +60,11 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
                              f"the subtasks of {ds.env_id} ({', '.join(s.name for s in subtasks)})")
         return Sources(str(ds.path.resolve()), ds.env_id, ds.env_kwargs, tuple(s.name for s in subtasks),
                        tuple(segments), tuple(skipped), digest.hexdigest())
+
+
+def _openings(base: Any, arrays: dict[str, np.ndarray]) -> np.ndarray | None:
+    """(T,) [m] the fingers' mean opening after each step of a demo (None: no fingers observed)."""
+    fingers = base.observation_layout.get("gripper_state")
+    if fingers is None:
+        return None
+    return np.asarray(arrays["next_obs/observation"][:, fingers], np.float64).mean(axis=1)
