@@ -21,11 +21,17 @@ class Push(Expert):
     """Get behind the object on the line to the goal, then push it along that line.
 
     Fingers closed, pushing a 5 cm block at its centre height. The hand goes over the object to
-    the start point and only then down, so it never lands on the object.
+    the start point and only then down, so it never lands on the object. Once the object is within
+    `done` of the goal the hand backs away: a policy that learnt to stand still there kept pushing a
+    little and lost 10-14 % of its successes by step 50; backing away is a clear action to learn.
     """
 
     behind = 0.055
     """[m] the grip site's distance behind the object's centre when pushing."""
+    done = 0.02
+    """[m] the object this close to the goal: stop pushing..."""
+    clear = 0.1
+    """[m] ...and back away to this far from it."""
 
     def line(self, obs: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
         """Grip, object and goal positions [m], the object's xy distance to the goal [m], and the
@@ -39,6 +45,14 @@ class Push(Expert):
 
     def act(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         grip, obj, goal, dist, direction = self.line(obs)
+        if dist < self.done:
+            # There: back away from the object and up, well clear of it.
+            away = (grip - obj)[:2]
+            away = away / max(float(np.linalg.norm(away)), 1e-6)
+            self.advance(Stage.DONE)
+            return np.append(self.move(grip, np.array([*(obj[:2] + away * self.clear), obj[2] + 0.05])), -1.0)
+        if self.stage is Stage.DONE:
+            self.stage = Stage.OVER  # the object left the goal: line up again
         start = obj[:2] - self.offset(direction)
         rel = grip[:2] - start
         along = float(rel @ direction) - self.behind
@@ -58,8 +72,6 @@ class Push(Expert):
             if abs(grip[2] - low) < 0.01:
                 self.advance(Stage.PUSH)
             return np.append(self.move(grip, np.array([*start, low])), -1.0)
-        if dist < 0.01:
-            return np.append(np.zeros(3), -1.0)
         target = np.array([*(goal[:2] - self.offset(direction)), low])
         return np.append(self.move(grip, target, speed=0.6), -1.0)
 
