@@ -40,6 +40,33 @@ class _Compiled:
     spec: mujoco.MjSpec
 
 
+def _mjb_hash(model: mujoco.MjModel) -> str:
+    buffer = np.empty(mujoco.mj_sizeModel(model), np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return hashlib.sha256(buffer.tobytes()).hexdigest()
+
+
+@functools.cache
+def _portable_hash(task_type: type[Task]) -> str:
+    """`_mjb_hash` of the task's model compiled again with its asset files handed over by relative
+    name (in memory), so that no absolute path ends up in it."""
+    spec = _compile(task_type).spec.copy()
+    assets: dict[str, bytes] = {}
+    for kind, directory, items in (("meshes", spec.meshdir, spec.meshes), ("textures", spec.texturedir, spec.textures)):
+        for item in items:
+            if not item.file:
+                continue
+            path = pathlib.Path(item.file)
+            relative = pathlib.Path(path.name) if path.is_absolute() else path
+            source = path if path.is_absolute() else pathlib.Path(directory) / path
+            assets[f"{kind}/{relative.as_posix()}"] = source.read_bytes()
+            item.file = relative.as_posix()
+    spec.meshdir, spec.texturedir = "meshes", "textures"
+    spec.modelfiledir = ""  # a scene read from a file resolves relative names against its directory
+    spec.assets = assets
+    return _mjb_hash(spec.compile())
+
+
 @functools.cache
 def _compile(task_type: type[Task]) -> _Compiled:
     """Build, compile and settle a task's scene once per process; envs copy the result."""
@@ -273,10 +300,15 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return str(self._compiled.spec.to_xml())
 
     def model_hash(self) -> str:
-        """SHA-256 of the compiled model (MJB bytes): equal models, equal hashes, wherever installed."""
-        buffer = np.empty(mujoco.mj_sizeModel(self._compiled.model), np.uint8)
-        mujoco.mj_saveModel(self._compiled.model, None, buffer)
-        return hashlib.sha256(buffer.tobytes()).hexdigest()
+        """SHA-256 of the compiled model (MJB bytes) with its mesh and texture files named relative to
+        their directories: equal models, equal hashes, wherever installed. (The model itself holds the
+        files' absolute paths, so hashing it as it is gave two venvs on one machine two hashes.)"""
+        return _portable_hash(type(self.task))
+
+    def legacy_model_hash(self) -> str:
+        """The hash datasets were stamped with before `model_hash` left the install paths out: the same
+        model installed elsewhere has another. A dataset holding it still takes appends here."""
+        return _mjb_hash(self._compiled.model)
 
     def observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """The observation and info of the current state (e.g. after `set_state`)."""

@@ -89,8 +89,12 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
             require_valid(source)
         target = _out_path(out, [s.path for s in sources], force)
         first = sources[0]
+        model_hash = str(first.data_attrs["model_hash"])
         for other in sources[1:]:
             mine, theirs = first.header_attrs(), other.header_attrs()
+            if mine["model_hash"] != theirs["model_hash"]:  # maybe one is stamped the old way
+                mine["model_hash"], theirs["model_hash"] = _current_hash(first), _current_hash(other)
+                model_hash = mine["model_hash"]
             differences = [f"{key}: {first.path} has {mine[key]!r}, {other.path} has {theirs[key]!r}"
                            for key in SAME if mine[key] != theirs[key]]
             if differences:
@@ -98,11 +102,26 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
                                    "would be mixed):\n  " + "\n  ".join(differences))
         total = sum(len(s.demo_names) for s in sources)
         with replacing(target) as tmp, h5py.File(tmp, "w") as f:
-            report = _write_merged(f, sources, total, target)
+            report = _write_merged(f, sources, total, target, model_hash)
     return report
 
 
-def _write_merged(f: h5py.File, sources: list[Dataset], total: int, target: pathlib.Path) -> MergeReport:
+def _current_hash(ds: Dataset) -> str:
+    """The dataset's model hash, in today's install-independent form if it holds this install's old-style
+    hash of the same model (datasets recorded before `FetchEnv.model_hash` left the install paths out)."""
+    import gymnasium as gym
+
+    recorded = str(ds.data_attrs["model_hash"])
+    env = gym.make(ds.env_id, **ds.env_kwargs)
+    try:
+        base: Any = env.unwrapped
+        return str(base.model_hash()) if recorded == base.legacy_model_hash() else recorded
+    finally:
+        env.close()
+
+
+def _write_merged(f: h5py.File, sources: list[Dataset], total: int, target: pathlib.Path,
+                  model_hash: str) -> MergeReport:
     first = sources[0]
     settings = dict(first.settings)
     for s in sources[1:]:  # keep the settings all inputs share; the differing ones go to `sources`
@@ -138,7 +157,7 @@ def _write_merged(f: h5py.File, sources: list[Dataset], total: int, target: path
         "settings": json.dumps(settings, sort_keys=True),
         "layout": first.data_attrs["layout"],
         "model_xml": first.data_attrs["model_xml"],
-        "model_hash": first.data_attrs["model_hash"],
+        "model_hash": model_hash,
         "attempts": sum(int(s.data_attrs.get("attempts", 0)) for s in sources),
         "sources": json.dumps([{"path": str(s.path), "demos": len(s.demo_names), "settings": s.settings,
                                 "versions": s.versions, "created": s.data_attrs.get("created")} for s in sources]),

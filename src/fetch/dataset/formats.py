@@ -53,5 +53,6 @@ def open_writer(format: str, out: str, env: gym.Env, *, settings: dict[str, Any]
 
     header = Header(env_id=env_id, env_kwargs={"reward_type": base.reward_type},
                     layout=recorded_layout(env, cameras, image_size), settings=settings,
-                    model_xml=base.model_xml(), model_hash=base.model_hash(), versions=package_versions())
+                    model_xml=base.model_xml(), model_hash=base.model_hash(), versions=package_versions(),
+                    legacy_model_hash=base.legacy_model_hash())
     return DatasetWriter(out, header, on_saved)

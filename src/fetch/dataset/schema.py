@@ -149,7 +149,8 @@ DATA_ATTRS: tuple[tuple[str, str], ...] = (
     ("settings", "JSON: the collection settings a resumed session must match"),
     ("layout", "JSON: observation sizes, state size, cameras, image size"),
     ("model_xml", "the compiled MuJoCo model as MJCF"),
-    ("model_hash", "SHA-256 of the compiled model (MJB); a resumed session must match it"),
+    ("model_hash", "SHA-256 of the compiled model (MJB, asset files by relative name, so the same on any "
+                   "install); a resumed session or a merge must match it"),
     ("attempts", "attempts made so far (the next attempt's number)"),
 )
 

@@ -52,6 +52,9 @@ class Header:
     model_xml: str
     model_hash: str
     versions: dict[str, str]
+    legacy_model_hash: str = ""
+    """The same model's hash as datasets recorded before `model_hash` became install-independent have
+    it: such a dataset still takes appends from this install."""
 
     def env_args(self) -> str:
         return json.dumps({"env_name": self.env_id, "type": schema.ENV_TYPE_GYM, "env_kwargs": self.env_kwargs})
@@ -178,6 +181,8 @@ class DatasetWriter(BackgroundWriter):
         h = self.header
         mine = {"env_id": h.env_id, "env_kwargs": h.env_kwargs, "layout": schema.layout_to_json(h.layout),
                 "settings": h.settings, "model_hash": h.model_hash}
+        if h.legacy_model_hash and attrs.get("model_hash") == h.legacy_model_hash:
+            mine["model_hash"] = h.legacy_model_hash  # recorded before the hash was install-independent
         differences = [f"{key}: the dataset has {attrs.get(key)!r}, this session {value!r}"
                        for key, value in mine.items() if attrs.get(key) != value]
         if differences:
