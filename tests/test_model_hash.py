@@ -53,16 +53,17 @@ def test_the_same_model_installed_elsewhere_has_the_same_hash(tmp_path: pathlib.
     env_module._compile.cache_clear()
     env_module._portable_hash.cache_clear()
     there = gym.make(ENV_ID).unwrapped
-    assert str(elsewhere) in there.model.paths.decode(), "the scene was not built from the copy"
-    assert there.legacy_model_hash() != legacy, "the old hash depended on the install path"
+    spec = env_module._compile(type(there.task)).spec
+    assert spec.meshdir.startswith(str(elsewhere)), "the scene was not built from the copy"
+    if str(elsewhere) in there.model.paths.decode():  # mujoco 4.0 keeps the files' paths in the model, 3.3 did not
+        assert there.legacy_model_hash() != legacy, "the old hash depended on the install path"
     assert there.model_hash() == portable
 
 
 def test_a_dataset_stamped_the_old_way_takes_appends_and_its_stamp_is_renewed(tmp_path: pathlib.Path) -> None:
     out = tmp_path / "old"
     collect(out)
-    old = stamp_the_old_way(out)
-    assert old != gym.make(ENV_ID).unwrapped.model_hash()
+    stamp_the_old_way(out)  # the same as the new stamp on a mujoco that keeps no file paths in the model
     collect(out)
     with open_dataset(out) as ds:
         assert len(ds.demo_names) == 2
