@@ -34,12 +34,10 @@ def collect(out: pathlib.Path) -> None:
                  "--out", str(out)]) == 0
 
 
-def stamp_the_old_way(path: pathlib.Path) -> str:
+def stamp_the_old_way(path: pathlib.Path) -> None:
     """Overwrite a dataset's model hash with the pre-portable one (the MJB with absolute file paths)."""
-    old = gym.make(ENV_ID).unwrapped.legacy_model_hash()
     with h5py.File(path / "demos.hdf5", "r+") as f:
-        f["data"].attrs["model_hash"] = old
-    return old
+        f["data"].attrs["model_hash"] = gym.make(ENV_ID).unwrapped.legacy_model_hash()
 
 
 def test_the_same_model_installed_elsewhere_has_the_same_hash(tmp_path: pathlib.Path, fresh_compile: None,

@@ -89,12 +89,12 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
             require_valid(source)
         target = _out_path(out, [s.path for s in sources], force)
         first = sources[0]
-        model_hash = str(first.data_attrs["model_hash"])
-        for other in sources[1:]:
+        hashes = [str(s.data_attrs["model_hash"]) for s in sources]
+        if len(set(hashes)) > 1:  # maybe some are stamped the old way: compare in today's form
+            hashes = [_current_hash(s) for s in sources]
+        for other, other_hash in zip(sources[1:], hashes[1:], strict=True):
             mine, theirs = first.header_attrs(), other.header_attrs()
-            if mine["model_hash"] != theirs["model_hash"]:  # maybe one is stamped the old way
-                mine["model_hash"], theirs["model_hash"] = _current_hash(first), _current_hash(other)
-                model_hash = mine["model_hash"]
+            mine["model_hash"], theirs["model_hash"] = hashes[0], other_hash
             differences = [f"{key}: {first.path} has {mine[key]!r}, {other.path} has {theirs[key]!r}"
                            for key in SAME if mine[key] != theirs[key]]
             if differences:
@@ -102,7 +102,7 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
                                    "would be mixed):\n  " + "\n  ".join(differences))
         total = sum(len(s.demo_names) for s in sources)
         with replacing(target) as tmp, h5py.File(tmp, "w") as f:
-            report = _write_merged(f, sources, total, target, model_hash)
+            report = _write_merged(f, sources, total, target, hashes[0])
     return report
 
 
