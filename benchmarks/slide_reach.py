@@ -62,10 +62,10 @@ class Forced(Slide):
         self.motion, self.offset = self.contact(self.line)
         self.advance(Stage.LINE_UP)
 
-    def size(self, distance: float, x: float) -> float:
+    def size(self, distance: float, puck: np.ndarray) -> float:
         # A negative size scales the expert's own choice (its strike table) by minus that.
         if self.forced_size < 0.0:
-            return min(-self.forced_size * super().size(distance, x), 1.0)
+            return min(-self.forced_size * super().size(distance, puck), 1.0)
         return self.forced_size
 
 
