@@ -139,6 +139,52 @@ def test_temporal_ensembling_averages_every_chunk_prediction_for_this_step(torch
         np.testing.assert_allclose(acted[t], np.clip(expected, -1, 1), atol=1e-5)
 
 
+@pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])
+def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reach: pathlib.Path, tmp_path,
+                                                                     kind: str) -> None:  # noqa: ANN001
+    from fetch.learn.data import flat_obs
+    from fetch.learn.policies import PolicyConfig, build
+    from fetch.learn.runtime import load
+
+    assert _train(reach, tmp_path / "run", "--policy", kind, "--steps", "40", "--members", "3") == 0
+    state = torch.load(tmp_path / "run" / "checkpoint.pt", weights_only=True)
+    policy = load(tmp_path / "run")
+    assert policy.config.members == 3 and len(policy.model.nets) == 3
+    first = [w for k, w in state["model"].items() if k.startswith("nets.0.")][0]
+    second = state["model"][next(k for k in state["model"] if k.startswith("nets.1."))]
+    assert not torch.equal(first, second), "the members start from different weights"
+    # Each member, loaded alone, is a network of the kind; the policy acts on their mean.
+    alone = PolicyConfig.from_dict({**policy.config.as_dict(), "members": 1})
+    members = []
+    for i in range(3):
+        net = build(alone)
+        net.load_state_dict({k.split(".", 2)[2]: v for k, v in state["model"].items() if k.startswith(f"nets.{i}.")})
+        members.append(net.eval())
+    env = gym.make("Reach-v2")
+    obs, _ = env.reset(seed=7)
+    policy.reset()
+    x = torch.from_numpy(policy.normalizer(flat_obs(obs))[None])
+    with torch.no_grad():
+        if kind == "gru":
+            each = [net.step(x[:, None, :], None)[0][0, 0].numpy() for net in members]
+        else:
+            each = [net(x)[0, 0].numpy() for net in members]  # the first action of each member's chunk
+    np.testing.assert_allclose(policy(obs), np.clip(np.mean(each, axis=0), -1, 1), atol=1e-5)
+    env.close()
+
+
+def test_a_single_network_checkpoint_without_members_still_loads(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    """Runs trained before ensembles existed store no `members` setting: they load as one network."""
+    from fetch.learn.runtime import load
+
+    assert _train(reach, tmp_path / "run", "--steps", "20") == 0
+    path = tmp_path / "run" / "checkpoint.pt"
+    state = torch.load(path, weights_only=True)
+    del state["policy"]["members"]
+    torch.save(state, path)
+    assert load(tmp_path / "run").config.members == 1
+
+
 def test_a_recurrent_policy_trains_and_acts(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
     from fetch.learn.runtime import load
 
@@ -240,6 +286,7 @@ def test_a_policy_drives_a_collection_session(torch, reach: pathlib.Path, tmp_pa
     (["--steps", "0"], "--steps must be a whole number >= 1"),
     (["--lr", "nan"], "--lr must be a finite number > 0"),
     (["--epochs", "0"], "--epochs must be a whole number >= 1"),
+    (["--members", "0"], "policy members must be a whole number >= 1"),
 ])
 def test_bad_training_arguments_get_one_line_errors(torch, reach, tmp_path, capsys, argv, message) -> None:  # noqa: ANN001
     assert main(["train", str(reach), "--out", str(tmp_path / "run"), *argv]) == 2

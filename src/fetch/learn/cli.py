@@ -32,6 +32,9 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seq-len", type=int, default=None, help="gru: training window [steps] (default 10)")
     p.add_argument("--hidden", type=int, default=None, help="units per layer (default 256; gru 128)")
     p.add_argument("--layers", type=int, default=None, help="hidden layers (default 2; gru 1)")
+    p.add_argument("--members", type=int, default=None,
+                   help="an ensemble: train this many networks side by side from different initial weights "
+                        "and act on their mean; takes that many times as long (default 1)")
     p.add_argument("--obs-noise", type=float, default=0.0,
                    help="std of noise on the normalised observations while training (default 0)")
     p.add_argument("--checkpoint-every", type=int, default=1000,
@@ -49,7 +52,7 @@ def run_train(args: argparse.Namespace) -> int:
     demos = load_demos(args.dataset)
     kind = policy_for(demos.env_id) if args.policy == "auto" else args.policy
     policy = {"kind": kind, **KIND_DEFAULTS.get(kind, {})}
-    for name in ("chunk", "seq_len", "hidden", "layers"):
+    for name in ("chunk", "seq_len", "hidden", "layers", "members"):
         if getattr(args, name) is not None:
             policy[name] = getattr(args, name)
     if kind == "gru" and args.chunk is not None:

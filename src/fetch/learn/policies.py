@@ -4,13 +4,16 @@ Every policy maps a batch of inputs X to predictions of the same shape as its ta
 only the entries M marks count in the loss. `mlp-chunk` reads one observation (N, D) and predicts
 the next `chunk` actions (N, chunk, 4), as ACT does; `gru` reads a window of `seq_len`
 observations (N, L, D) and predicts the action at each of them (N, L, 4), as robomimic's BC-RNN.
+Either can be an ensemble (`members` > 1): that many networks of the kind, from different initial
+weights, trained side by side on the same batches; their predictions are stacked on a leading axis
+(K, ...), each is trained against the targets, and the policy acts on their mean.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -37,13 +40,15 @@ class PolicyConfig:
     seq_len: int = 10
     """gru: training window [steps]; acting, the hidden state restarts every `seq_len` steps as in training."""
     loss: str = "l1"
+    members: int = 1
+    """networks trained side by side from different initial weights; the policy acts on their mean."""
 
     def __post_init__(self) -> None:
         if self.kind not in POLICIES:
             raise UnknownNameError("policy", self.kind, tuple(POLICIES))
         if self.loss not in LOSSES:
             raise UnknownNameError("loss", self.loss, LOSSES)
-        for name in ("obs_size", "hidden", "layers", "chunk", "seq_len"):
+        for name in ("obs_size", "hidden", "layers", "chunk", "seq_len", "members"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 raise FetchError(f"policy {name} must be a whole number >= 1, got {value!r}")
@@ -101,6 +106,26 @@ class RecurrentPolicy(nn.Module):
         return self.head(out), hidden
 
 
+class Members(nn.Module):
+    """`config.members` networks of one kind: their predictions stacked on a leading axis (K, ...)."""
+
+    def __init__(self, config: PolicyConfig) -> None:
+        super().__init__()
+        self.nets = nn.ModuleList(POLICIES[config.kind](config) for _ in range(config.members))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.stack([net(x) for net in self.nets])
+
+    def step(self, x: torch.Tensor, hidden: list[torch.Tensor] | None) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        """The recurrent members' `step`, each with its own hidden state."""
+        outs, states = [], []
+        for i, net in enumerate(self.nets):
+            out, state = cast(RecurrentPolicy, net).step(x, None if hidden is None else hidden[i])
+            outs.append(out)
+            states.append(state)
+        return torch.stack(outs), states
+
+
 @dataclasses.dataclass(frozen=True)
 class Samples:
     """Training examples of one policy kind: inputs X, targets Y, and which targets exist M."""
@@ -132,12 +157,15 @@ def samples(config: PolicyConfig, episodes: Sequence[Episode], normalize: Any) -
 
 
 def build(config: PolicyConfig) -> nn.Module:
-    return POLICIES[config.kind](config)
+    return Members(config) if config.members > 1 else POLICIES[config.kind](config)
 
 
 def masked_loss(config: PolicyConfig, prediction: torch.Tensor, target: torch.Tensor,
                 mask: torch.Tensor) -> torch.Tensor:
+    """The mean error of the targets that exist; an ensemble's (K, ...) predictions: the mean over members."""
     error = (prediction - target).abs() if config.loss == "l1" else (prediction - target) ** 2
+    if config.members > 1:
+        error = error.mean(dim=0)
     weights = mask.unsqueeze(-1).to(error.dtype)
     return (error * weights).sum() / (weights.sum() * ACTION_SIZE).clamp_min(1.0)
 

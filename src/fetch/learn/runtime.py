@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -13,7 +13,7 @@ import torch
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
 from fetch.learn.data import Normalizer, flat_obs
-from fetch.learn.policies import PolicyConfig, RecurrentPolicy, build
+from fetch.learn.policies import Members, PolicyConfig, RecurrentPolicy, build
 
 
 class Policy:
@@ -40,7 +40,7 @@ class Policy:
         self._t = 0
         self._batch: int | None = None
         self._chunks: list[np.ndarray] = []  # newest last, each (B, chunk, 4)
-        self._hidden: torch.Tensor | None = None
+        self._hidden: Any = None  # gru: its hidden state (an ensemble's: one per member)
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         x = self.normalizer(flat_obs(obs))
@@ -58,17 +58,23 @@ class Policy:
         return action[0] if single else action
 
     def _act(self, x: torch.Tensor) -> np.ndarray:
-        if isinstance(self.model, RecurrentPolicy):
+        if self.config.kind == "gru":
             if self._t % self.config.seq_len == 0:
                 self._hidden = None
-            out, self._hidden = self.model.step(x[:, None, :], self._hidden)
-            return out[:, 0].numpy()
-        self._chunks = (self._chunks + [self.model(x).numpy()])[-self.config.chunk:]
+            recurrent = cast(RecurrentPolicy | Members, self.model)
+            out, self._hidden = recurrent.step(x[:, None, :], self._hidden)
+            return self._mean(out)[:, 0].numpy()
+        self._chunks = (self._chunks + [self._mean(self.model(x)).numpy()])[-self.config.chunk:]
         # The chunk made j steps ago predicted this step as its element j; the oldest weighs most.
         ages = range(len(self._chunks) - 1, -1, -1)
         weights = np.exp(-self.config.ensemble_decay * np.arange(len(self._chunks)))
         predictions = np.stack([c[:, j] for c, j in zip(self._chunks, ages, strict=True)])
         return np.tensordot(weights / weights.sum(), predictions, axes=1)
+
+
+    def _mean(self, prediction: torch.Tensor) -> torch.Tensor:
+        """An ensemble's stacked (K, ...) predictions as their mean; a single network's as they are."""
+        return prediction.mean(dim=0) if self.config.members > 1 else prediction
 
 
 def load(run: str | os.PathLike[str]) -> Policy:
