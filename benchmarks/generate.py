@@ -189,16 +189,16 @@ TRAINED = ("generated", "sources")
 def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[str, Any]],
             path: pathlib.Path) -> dict[str, Any]:
     """Train `gym-fetch train`'s default policy for the task on `kind` and evaluate it (one training seed)."""
-    key = f"policy/{kind}/{env_id}"
+    from fetch.learn.train import TrainConfig
+    from learning_curves import auto_variant, train_and_evaluate  # the harness of the 100-expert-demo figures
+
+    policy = auto_variant(env_id)
+    key = f"policy/{kind}/{env_id}/{policy}"
     if key in results:
         return results[key]
-    from fetch.learn import policy_for
-    from fetch.learn.train import TrainConfig
-    from learning_curves import train_and_evaluate  # the same harness as the 100-expert-demo figures
-
     dataset = root / (f"gen-expert-{env_id}" if kind == "generated" else f"src-expert-{env_id}")
-    policy = policy_for(env_id)
-    outcome = train_and_evaluate(dataset, root / "runs" / f"{kind}-{env_id}", policy, 0, TrainConfig().steps)
+    outcome = train_and_evaluate(dataset, root / "runs" / f"{kind}-{env_id}-{policy}", policy, 0,
+                                 TrainConfig().steps)
     row = {"key": key, "task": env_id, "trained_on": kind, "policy": policy, **outcome,
            "load": os.getloadavg()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     keep(row, results, path)
@@ -209,26 +209,27 @@ def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[
 def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves: pathlib.Path) -> None:
     """Policy success trained on generated demos, on their sources, and (from learning_curves.py) on 100 expert
     demos; the bar is generated >= expert-100."""
-    if not any(f"policy/{kind}/{t}" in results for kind in TRAINED for t in tasks):
-        return
-    from fetch.learn import policy_for
+    from learning_curves import auto_variant
     from learning_curves import load_results as curve_results
+
+    if not any(f"policy/{kind}/{t}/{auto_variant(t)}" in results for kind in TRAINED for t in tasks):
+        return
 
     curve_rows = curve_results(curves) if (curves / "results").is_dir() else []
     print("\n| task | policy | 1000 generated | 10 sources | 100 expert (DART, learning_curves.py) | "
           "generated >= expert-100 |")
     print("|---|---|---|---|---|---|")
     for env_id in tasks:
-        cells = [f"{100 * row['success_rate']:.0f}" if (row := results.get(f"policy/{kind}/{env_id}")) else "-"
-                 for kind in TRAINED]
-        policy = policy_for(env_id)
+        policy = auto_variant(env_id)
+        cells = [f"{100 * row['success_rate']:.0f}" if (row := results.get(f"policy/{kind}/{env_id}/{policy}"))
+                 else "-" for kind in TRAINED]
         expert = [r["success_rate"] for r in curve_rows
                   if (r["task"], r["recording"], r["policy"], r["demos"]) == (env_id, "dart", policy, 100)]
         reference, verdict = "-", ""
         if expert:
             mean = float(np.mean(expert))
             reference = f"{100 * mean:.0f} ({len(expert)} seeds)"
-            if row := results.get(f"policy/generated/{env_id}"):
+            if row := results.get(f"policy/generated/{env_id}/{policy}"):
                 verdict = "yes" if row["success_rate"] >= mean else "no"
         print(f"| `{env_id}` | {policy} | {cells[0]} | {cells[1]} | {reference} | {verdict} |")
 

@@ -353,11 +353,20 @@ def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  
 
 
 def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
-    from fetch.learn import MEASURED_POLICY, policy_for
+    from fetch.learn import MEASURED_POLICY, MEASURED_SETTINGS, auto_settings, policy_for
     from fetch.learn.runtime import load
     from fetch.tasks import ENV_IDS
 
-    assert set(MEASURED_POLICY) <= set(ENV_IDS), "every exception names a registered task"
+    assert set(MEASURED_POLICY) | set(MEASURED_SETTINGS) <= set(ENV_IDS), "every exception names a registered task"
     assert policy_for("Drawer-close-v2") == "mlp-chunk" and policy_for("Reach-v2") == "gru"
+    assert auto_settings("Push-v2") == {"kind": "mlp-chunk", "members": 5}
+    assert auto_settings("Reach-v2") == {"kind": "gru"}
     assert _train(reach, tmp_path / "run", "--steps", "20") == 0  # --policy auto
     assert load(tmp_path / "run").config.kind == policy_for("Reach-v2")
+    push = tmp_path / "push"
+    assert main(["collect", "--env", "Push-v2", "--device", "expert", "--episodes", "3", "--render", "none",
+                 "--max-steps", "50", "--out", str(push)]) == 0
+    assert _train(push, tmp_path / "push-run", "--steps", "5") == 0
+    assert load(tmp_path / "push-run").config.members == 5
+    assert _train(push, tmp_path / "push-one", "--steps", "5", "--members", "1") == 0  # a flag overrides auto
+    assert load(tmp_path / "push-one").config.members == 1

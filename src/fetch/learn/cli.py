@@ -7,7 +7,7 @@ import json
 import pathlib
 
 from fetch.errors import FetchError
-from fetch.learn import MEASURED_POLICY, POLICY_KINDS, policy_for, require_torch
+from fetch.learn import MEASURED_POLICY, MEASURED_SETTINGS, POLICY_KINDS, auto_settings, require_torch
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
@@ -17,7 +17,8 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                         "run the same command again to resume a run that was stopped")
     p.add_argument("--policy", default="auto", choices=("auto", *POLICY_KINDS),
                    help="auto (default): the policy measured best on the dataset's task, gru but for "
-                        f"{', '.join(sorted(MEASURED_POLICY))} (mlp-chunk; docs/learning_curves.md); gru: a "
+                        f"{', '.join(sorted(MEASURED_POLICY))} (mlp-chunk), an ensemble of 5 on "
+                        f"{', '.join(sorted(MEASURED_SETTINGS))} (docs/learning_curves.md); gru: a "
                         "recurrent policy (BC-RNN); mlp-chunk: an MLP predicting chunks of actions with ACT's "
                         "temporal ensembling, ~7x faster to train")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial weights and the batches (default 0)")
@@ -34,7 +35,8 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--layers", type=int, default=None, help="hidden layers (default 2; gru 1)")
     p.add_argument("--members", type=int, default=None,
                    help="an ensemble: train this many networks side by side from different initial weights "
-                        "and act on their mean; takes that many times as long (default 1)")
+                        "and act on their mean; takes that many times as long (default 1; --policy auto: 5 on "
+                        f"{', '.join(sorted(MEASURED_SETTINGS))})")
     p.add_argument("--obs-noise", type=float, default=0.0,
                    help="std of noise on the normalised observations while training (default 0)")
     p.add_argument("--checkpoint-every", type=int, default=1000,
@@ -50,8 +52,9 @@ def run_train(args: argparse.Namespace) -> int:
     from fetch.learn.train import TrainConfig, train
 
     demos = load_demos(args.dataset)
-    kind = policy_for(demos.env_id) if args.policy == "auto" else args.policy
-    policy = {"kind": kind, **KIND_DEFAULTS.get(kind, {})}
+    chosen = auto_settings(demos.env_id) if args.policy == "auto" else {"kind": args.policy}
+    kind = chosen["kind"]
+    policy = {**KIND_DEFAULTS.get(kind, {}), **chosen}
     for name in ("chunk", "seq_len", "hidden", "layers", "members"):
         if getattr(args, name) is not None:
             policy[name] = getattr(args, name)
@@ -74,7 +77,8 @@ def run_train(args: argparse.Namespace) -> int:
     result = train(demos, args.out, policy, config)
     valid = "none (no valid split)" if result.valid_loss is None else f"{result.valid_loss:.4f}"
     resumed = f", resumed at step {result.resumed_from}" if result.resumed_from else ""
-    print(f"trained {kind} on {len(demos.train[:args.demos or None])} {demos.env_id} demos for {result.steps} "
+    members = f" ({policy['members']} members)" if policy.get("members", 1) > 1 else ""
+    print(f"trained {kind}{members} on {len(demos.train[:args.demos or None])} {demos.env_id} demos for {result.steps} "
           f"steps{resumed}: train loss {result.train_loss:.4f}, valid loss {valid}; "
           f"evaluate with: gym-fetch eval {args.out}")
     return 0
