@@ -106,10 +106,11 @@ def _strike_table(puck: np.ndarray, line: np.ndarray) -> tuple[np.ndarray, np.nd
 
 def strike_size(distance: float, puck: np.ndarray, line: np.ndarray) -> float:
     """The action size whose strike along `line` (xy) sends a puck at rest at `puck` [m, xy]
-    `distance` [m] before it stops; 1 if that is beyond any strike."""
+    `distance` [m] before it stops; if that is beyond any strike, the smallest size that strikes
+    furthest."""
     per_axis = distance / np.sqrt(2.0) if _is_diagonal(line) else distance
     sizes, reach = _strike_table(puck, line)
-    # Where the table stops growing (harder strikes send the puck astray) the expert strikes no harder.
+    # Where the table stops growing (a harder strike sent the puck no further) it strikes no harder.
     top = int(np.argmax(reach >= reach[-1])) + 1
     return float(np.interp(per_axis, reach[:top], sizes[:top]))
 
