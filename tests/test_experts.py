@@ -11,12 +11,15 @@ from fetch.experts import Expert, make_expert
 from fetch.experts.base import Stage
 
 SEEDS = range(100, 106)
-# Slide's expert (strikes, at Fetch*-v4's geometry and 50 steps) solves 78.5 % of the benchmark's 200
-# seeds on mujoco 4.0 (28 % with action noise 0.1), below the 95 % bar (issue 15 stays open). Of these
-# six seeds it solves 6 on mujoco 4.0.0 and 3 on 3.3.0, where the arm moves differently (tests/test_parity_v4.py).
-MIN_SUCCESSES = {"Slide-v2": 3}
+_OLD_ARM = tuple(int(v) for v in mujoco.__version__.split(".")[:2]) < (3, 7)
+# Slide's expert (strikes, at Fetch*-v4's geometry and 50 steps) solves 90 % of the benchmark's 200
+# seeds on mujoco 4.0 (95.1 % of those some one- or two-strike plan reaches; 26.5 % with action noise
+# 0.1). Its strike table was measured on 4.0; before 3.7 the arm moves differently
+# (tests/test_parity_v4.py) and it solves 49.5 % (39.5 % with the table before it knew the arm's
+# reach to the side). Of these six seeds it solves 6 on mujoco 4.0.0 and 2 on 3.3.0.
+MIN_SUCCESSES = {"Slide-v2": 2 if _OLD_ARM else 6}
 BEFORE_MUJOCO_3_7 = pytest.mark.xfail(
-    tuple(int(v) for v in mujoco.__version__.split(".")[:2]) < (3, 7),
+    _OLD_ARM,
     reason="the strike sizes were measured on mujoco 4.0; before 3.7 the arm moves differently "
            "(tests/test_parity_v4.py) and a strike lands the puck up to 11 cm and 15 degrees elsewhere",
     strict=False)
