@@ -28,6 +28,7 @@ import numpy as np
 import fetch  # noqa: F401  (registers the ids)
 from fetch.experts.base import Stage
 from fetch.experts.slide import CENTRE_Y, STRIKE_TABLE
+from fetch.timing import CONTROL_DT
 from slide_reach import Forced
 
 XS = (0.9, 0.95, 1.0, 1.05, 1.1, 1.15, 1.2, 1.25, 1.3, 1.33, 1.36, 1.39, 1.42)
@@ -61,7 +62,7 @@ def strike(env: gym.Env, xy: tuple[float, float], line: tuple[float, float], siz
         if expert.stage is Stage.PUSH and before is None:
             before, struck_at = obs["observation"][layout["object_pos"]][:2].copy(), step
         obs = env.step(action)[0]
-        speed = np.linalg.norm(obs["observation"][layout["object_velp"]][:2]) / 0.04
+        speed = np.linalg.norm(obs["observation"][layout["object_velp"]][:2]) / CONTROL_DT
         if before is not None and step > struck_at + 4 and speed < 0.003:
             break
     if before is None:
@@ -70,7 +71,7 @@ def strike(env: gym.Env, xy: tuple[float, float], line: tuple[float, float], siz
 
 
 def _runs(kind: str, across: float) -> list[tuple[float, tuple[float, float]]]:
-    """(puck xy offset from the centre line's y, line) of the strikes one table entry averages."""
+    """(the puck's y offset from the centre line, line) of each strike one table entry averages."""
     sides = (1.0, -1.0) if across else (1.0,)
     if kind == "along_x":
         return [(side * across, (1.0, 0.0)) for side in sides]

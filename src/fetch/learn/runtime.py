@@ -71,7 +71,6 @@ class Policy:
         predictions = np.stack([c[:, j] for c, j in zip(self._chunks, ages, strict=True)])
         return np.tensordot(weights / weights.sum(), predictions, axes=1)
 
-
     def _mean(self, prediction: torch.Tensor) -> torch.Tensor:
         """An ensemble's stacked (K, ...) predictions as their mean; a single network's as they are."""
         return prediction.mean(dim=0) if self.config.members > 1 else prediction
