@@ -100,6 +100,8 @@ class Drawer(Expert):
         if self.stage is Stage.DOWN:
             if abs(hook[2] - grip[2]) < 0.008:
                 self.advance(Stage.PULL)
+            elif self.timer >= 4 and grip[2] - hook[2] > 0.015:
+                self.advance(Stage.ABOVE)  # stalled: the fingers rest on the bar; up, and in again
             return np.append(self.move(grip, hook), -1.0)
         # Move the hook to where it is with the drawer at its goal, a bit past it.
         target = goal + [self.gap, 0.0, 0.0]

@@ -60,7 +60,9 @@ class PickAndPlace(Expert):
             return np.append(xyz, self.finger_servo(obs, self.layout, g.opening))
         if self.stage is Stage.DESCEND:
             xyz = self.move(grip, grasp_at)
-            if np.linalg.norm((grasp_at - grip)[:2]) > 0.02:
+            # Drifted off, or stalled above the grasp point: fingers that noise or a bump closed
+            # on the way down rest on the object's top. Go back up, open them and come down again.
+            if np.linalg.norm((grasp_at - grip)[:2]) > 0.02 or (self.timer >= 4 and grip[2] - grasp_at[2] > 0.015):
                 self.advance(Stage.ABOVE)
             elif abs(grasp_at[2] - grip[2]) < 0.006:
                 self.advance(Stage.CLOSE)
