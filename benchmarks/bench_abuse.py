@@ -5,7 +5,13 @@ random 1-5 steps so the hand really drives into things), a reset every 50 steps 
 After every step: the deepest contact (-dist over all contacts) and which geoms, and the fastest
 free body (linear speed [m/s]). Prints a table; docs/benchmarks.md holds the numbers.
 
-    python benchmarks/bench_abuse.py --steps 10000
+`--contacts mujoco` gives our room's geoms MuJoCo's default contacts, as they were before the
+room's stiff ones (fetch.robot.ROOM_SOLREF). `--experts N` adds the experts' success under the
+chosen contacts; `--cost` times ordinary random steps both ways, alternating in one run.
+
+    python benchmarks/bench_abuse.py --steps 10000 --experts 200
+    python benchmarks/bench_abuse.py --steps 10000 --contacts mujoco --experts 200
+    python benchmarks/bench_abuse.py --cost
 """
 
 from __future__ import annotations
@@ -18,15 +24,44 @@ import mujoco
 import numpy as np
 
 import fetch
+from expert_success import evaluate  # benchmarks/ is the script's directory, so on sys.path
+from fetch.robot import ROOM_SOLIMP, ROOM_SOLREF
+
+MUJOCO_SOLREF, MUJOCO_SOLIMP = (0.02, 1.0), (0.9, 0.95, 0.001, 0.5, 2.0)
+"""MuJoCo's default contact parameters: what our room's geoms had before ROOM_SOLREF."""
 
 
-def abuse(env_id: str, steps: int, seed: int) -> dict[str, object]:
+def room_geoms(env: gym.Env) -> list[int]:
+    """The geoms built with the room's stiff contacts: everything in our room's tasks but the robot
+    and the Box tasks' lid; none in the classic tasks' scenes."""
+    m = env.unwrapped.model
+    return [g for g in range(m.ngeom)
+            if np.allclose(m.geom_solref[g], ROOM_SOLREF) and np.allclose(m.geom_solimp[g], ROOM_SOLIMP)]
+
+
+def soften(env: gym.Env) -> None:
+    """Give the room's geoms MuJoCo's default contacts, as before (MjModel's solref and solimp are
+    read every step, so this is the old model)."""
+    m = env.unwrapped.model
+    geoms = room_geoms(env)
+    m.geom_solref[geoms] = MUJOCO_SOLREF
+    m.geom_solimp[geoms] = MUJOCO_SOLIMP
+
+
+def abuse(env_id: str, steps: int, seed: int, contacts: str = "model") -> dict[str, object]:
     env = gym.make(env_id, max_episode_steps=10**9)
     u = env.unwrapped
     m, d = u.model, u.data
+    if contacts == "mujoco":
+        soften(env)
     free = [j for j in range(m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
+    robot = {b for b in range(m.nbody) if m.body(b).name.startswith("robot0:")}
+    grip = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "robot0:grip")
+    grip_vel = np.zeros(6)
     rng = np.random.default_rng(seed)
     worst_depth, depth_where, worst_speed, speed_where = 0.0, "", 0.0, ""
+    worst_launch, launch_where = 0.0, ""
+    touched: set[int] = set()  # free bodies touching the robot after the previous step
     action = np.zeros(4, np.float32)
     hold = 0
     start = time.perf_counter()
@@ -48,13 +83,47 @@ def abuse(env_id: str, steps: int, seed: int) -> dict[str, object]:
                 worst_depth = depth
                 names = [m.geom(g).name or m.body(m.geom_bodyid[g]).name for g in (g1, g2)]
                 depth_where = f"{names[0]} / {names[1]} (seed {episode_seed}, step {step % 50})"
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, grip, grip_vel, 0)
         for j in free:
-            speed = float(np.linalg.norm(d.qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + 3]))
+            vel = d.qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + 3]
+            speed = float(np.linalg.norm(vel))
+            where = f"{m.body(m.jnt_bodyid[j]).name} (seed {episode_seed}, step {step % 50})"
             if speed > worst_speed:
-                worst_speed = speed
-                speed_where = f"{m.body(m.jnt_bodyid[j]).name} (seed {episode_seed}, step {step % 50})"
+                worst_speed, speed_where = speed, where
+            if j in touched and step % 50:
+                launch = speed - float(np.linalg.norm(grip_vel[3:]))
+                if launch > worst_launch:
+                    worst_launch, launch_where = launch, where
+        bodies = m.geom_bodyid[d.contact.geom1[: d.ncon]].tolist(), m.geom_bodyid[d.contact.geom2[: d.ncon]].tolist()
+        pairs = zip(*bodies, strict=True)
+        touched = {j for a, b in pairs for j in free
+                   if (a == m.jnt_bodyid[j] and b in robot) or (b == m.jnt_bodyid[j] and a in robot)}
     return {"depth": worst_depth, "depth_where": depth_where, "speed": worst_speed, "speed_where": speed_where,
+            "launch": worst_launch, "launch_where": launch_where,
             "steps_per_s": steps / (time.perf_counter() - start)}
+
+
+def cost(env_id: str, steps: int, rounds: int = 5) -> float:
+    """Steps/s with the room's stiff contacts over steps/s with MuJoCo's defaults: ordinary uniform
+    random actions, the two alternating in `rounds` rounds on one env; the median ratio."""
+    env = gym.make(env_id, max_episode_steps=10**9)
+    m = env.unwrapped.model
+    geoms = room_geoms(env)
+    ratios = []
+    for r in range(rounds):
+        rates = {}
+        for stiff in (True, False) if r % 2 else (False, True):
+            m.geom_solref[geoms] = ROOM_SOLREF if stiff else MUJOCO_SOLREF
+            m.geom_solimp[geoms] = ROOM_SOLIMP if stiff else MUJOCO_SOLIMP
+            actions = np.random.default_rng(r).uniform(-1.0, 1.0, size=(steps, 4)).astype(np.float32)
+            start = time.perf_counter()
+            for step in range(steps):
+                if step % 50 == 0:
+                    env.reset(seed=r * steps + step)
+                env.step(actions[step])
+            rates[stiff] = steps / (time.perf_counter() - start)
+        ratios.append(rates[True] / rates[False])
+    return float(np.median(ratios))
 
 
 def main() -> None:
@@ -62,14 +131,41 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=10000, help="abusive steps per task (10000)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the action and reset draws (0)")
     parser.add_argument("--only", nargs="*", default=list(fetch.ENV_IDS), help="task ids (all)")
+    parser.add_argument("--contacts", choices=("model", "mujoco"), default="model",
+                        help="the contacts as the model has them (model), or MuJoCo's defaults on the "
+                             "room's geoms, as before the room's stiff contacts (mujoco)")
+    parser.add_argument("--cost", action="store_true",
+                        help="instead: steps/s with the room's stiff contacts over steps/s with MuJoCo's defaults")
+    parser.add_argument("--experts", type=int, default=0, metavar="N",
+                        help="also run each task's expert on seeds 0..N-1, plain and with action noise 0.1")
     args = parser.parse_args()
-    print(f"mujoco {mujoco.__version__}; {args.steps} abusive steps per task, seed {args.seed}\n")
-    print("| task | worst penetration [mm] | where | fastest object [m/s] | which | steps/s |")
-    print("|---|---|---|---|---|---|")
-    for env_id in args.only:
-        r = abuse(env_id, args.steps, args.seed)
+    only = [e for e in args.only if args.contacts == "model" or room_geoms(gym.make(e))]
+    if args.cost:
+        print(f"mujoco {mujoco.__version__}; 5 rounds of 1000 uniform random steps each way\n")
+        print("| task | steps/s stiff / MuJoCo's default contacts (median of 5) |\n|---|---|")
+        for env_id in only:
+            if room_geoms(gym.make(env_id)):
+                print(f"| `{env_id}` | {cost(env_id, 1000):.3f} |", flush=True)
+        return
+    print(f"mujoco {mujoco.__version__}; {args.steps} abusive steps per task, seed {args.seed}, "
+          f"{args.contacts} contacts\n")
+    print("| task | worst penetration [mm] | where | fastest object [m/s] | which | fastest launch [m/s] | which "
+          "| steps/s |")
+    print("|---|---|---|---|---|---|---|---|")
+    for env_id in only:
+        r = abuse(env_id, args.steps, args.seed, args.contacts)
         print(f"| `{env_id}` | {r['depth'] * 1000:.1f} | {r['depth_where']} | {r['speed']:.2f} | "
-              f"{r['speed_where'] or '-'} | {r['steps_per_s']:,.0f} |", flush=True)
+              f"{r['speed_where'] or '-'} | {r['launch']:.2f} | {r['launch_where'] or '-'} | {r['steps_per_s']:,.0f} |",
+              flush=True)
+    prepare = soften if args.contacts == "mujoco" else None
+    if args.experts:
+        print(f"\n| task | expert, seeds 0-{args.experts - 1} | with action noise 0.1 | first success: mean step |")
+        print("|---|---|---|---|")
+        for env_id in only:
+            plain = evaluate(env_id, args.experts, 0.0, prepare=prepare)
+            noisy = evaluate(env_id, args.experts, 0.1, prepare=prepare)
+            print(f"| `{env_id}` | {plain['success']:.1%} | {noisy['success']:.1%} | {plain['first_mean']:.1f} |",
+                  flush=True)
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
@@ -12,10 +13,13 @@ import fetch
 from fetch.experts import make_expert
 
 
-def evaluate(env_id: str, seeds: int, noise: float, first_seed: int = 0) -> dict[str, float]:
+def evaluate(env_id: str, seeds: int, noise: float, first_seed: int = 0,
+             prepare: Callable[[gym.Env], None] | None = None) -> dict[str, float]:
     """Run `seeds` episodes of the registered horizon, from seed `first_seed` on; Gaussian action
-    noise of std `noise`."""
+    noise of std `noise`. `prepare` may change the env first (bench_abuse.py's contact trial)."""
     env = gym.make(env_id)
+    if prepare is not None:
+        prepare(env)
     expert = make_expert(env)
     rng = np.random.default_rng(12345)
     finals, firsts = [], []

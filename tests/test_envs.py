@@ -248,6 +248,36 @@ def test_workspace_limits_hold_a_stick_held_for_200_steps(env_id: str, direction
     assert u.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0
 
 
+@pytest.mark.parametrize("env_id", [
+    "Bin-pick-v2", "Bin-place-v2", "Drawer-open-v2", "Drawer-close-v2",
+    *(pytest.param(e, marks=pytest.mark.xfail(strict=True, reason=(
+        "the lid keeps MuJoCo's soft contacts (stiff ones made it unstable) and the closed fingers "
+        "sink ~4 cm into it: it needs a hand whose push is force-limited (issue 20)")))
+      for e in ("Box-open-v2", "Box-close-v2")),
+])
+def test_the_hand_driven_down_onto_the_object_sinks_into_nothing_by_more_than_5_mm(env_id: str) -> None:
+    """Fingers shut, 8 cm over the task's object, then a stick held down at full speed. With MuJoCo's
+    default contacts the block sank 36-40 mm into the table or the bin's floor and the fingers 17-24 mm
+    into the drawer's handle; the room's stiff contacts (fetch.robot.ROOM_SOLREF) keep it to a few mm.
+    benchmarks/bench_abuse.py has the figures under random abuse."""
+    env = gym.make(env_id, max_episode_steps=500)
+    u = env.unwrapped
+    layout, data = u.observation_layout, u.data
+    part = next(p for p in ("block_pos", "handle_pos", "lid_pos") if p in layout)
+    deepest = 0.0
+    for seed in (0, 1):
+        obs, _ = env.reset(seed=seed)
+        above = obs["observation"][layout[part]] + [0.0, 0.0, 0.08]
+        for _ in range(15):
+            lead = (above - obs["observation"][layout["grip_pos"]]) / 0.05
+            obs, *_ = env.step(np.append(np.clip(lead, -1.0, 1.0), -1.0).astype(np.float32))
+        for _ in range(8):
+            obs, *_ = env.step(np.array([0.0, 0.0, -1.0, -1.0], dtype=np.float32))
+            if data.ncon:
+                deepest = max(deepest, -float(data.contact.dist[: data.ncon].min()))
+    assert deepest <= 0.005, f"{deepest * 1000:.1f} mm deep"
+
+
 def test_an_action_moves_the_target_by_5_cm_per_axis_from_the_hand(env_id: str) -> None:
     """The classic suite's rule: the target is the hand's pose plus 0.05 * a on each axis, so a
     full diagonal leads the hand by 8.7 cm (no clamp on the lead)."""

@@ -75,6 +75,14 @@ def robot_asset_dir() -> pathlib.Path:
 
 SCENE_XML = pathlib.Path(__file__).parent / "assets" / "scene.xml"
 
+ROOM_SOLREF = (2 * PHYSICS_DT, 1.0)
+"""Contacts in our room (floor, table, furniture, objects; the robot's own geoms keep theirs): a
+time constant of two physics steps, the stiffest MuJoCo integrates stably (its default: 0.02 s).
+With the default, a block the hand drives into the table or a bin wall sank up to 37 mm into it;
+with these, <= 5 mm (benchmarks/bench_abuse.py, docs/benchmarks.md)."""
+ROOM_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+"""... and an impedance near 1 at any depth (MuJoCo's default: 0.9 to 0.95), so they barely yield."""
+
 
 @dataclasses.dataclass(frozen=True)
 class Workspace:
@@ -141,6 +149,7 @@ def _room_spec(config: RobotConfig) -> mujoco.MjSpec:
     root = f"""<mujoco model="fetch">
   <compiler angle="radian" meshdir="{assets / 'stls' / 'fetch'}" texturedir="{assets / 'textures'}"/>
   <option timestep="{PHYSICS_DT}"/>
+  <default><geom solref="{_xml(ROOM_SOLREF)}" solimp="{_xml(ROOM_SOLIMP)}"/></default>
   <include file="{assets / 'fetch' / 'shared.xml'}"/>
   <include file="{SCENE_XML}"/>
   <worldbody><include file="{assets / 'fetch' / 'robot.xml'}"/></worldbody>
@@ -183,6 +192,10 @@ def _classic_spec(config: RobotConfig) -> mujoco.MjSpec:
     spec.visual.global_.offwidth = 640
     spec.visual.global_.offheight = 480
     return spec
+
+
+def _xml(values: tuple[float, ...]) -> str:
+    return " ".join(repr(v) for v in values)
 
 
 def _out_of_collisions(spec: mujoco.MjSpec, names: tuple[str, ...]) -> None:

@@ -27,6 +27,8 @@ SEAT_XY = 0.02
 """[m] a seated lid's centre is within this of the box's axis (it still covers the opening)."""
 SEAT_Z = 0.01
 """[m] ... and within this of the seated height (so it lies flat on the walls)."""
+LID_SOLREF, LID_SOLIMP = [0.02, 1.0], [0.9, 0.95, 0.001, 0.5, 2.0]
+"""The lid's contacts: MuJoCo's defaults (see add_box_and_lid)."""
 BESIDE = (0.20, 0.24)
 """[m] a lid beside the box has its centre this far from the box's along x or y: >= 3 cm gap."""
 
@@ -42,9 +44,13 @@ def add_box_and_lid(spec: mujoco.MjSpec) -> None:
     box.add_site(name="box", size=[0.01, 0.01, 0.01], rgba=[0, 0, 0, 0])
     lid = spec.worldbody.add_body(name="lid", pos=[1.9, 1.5, ON_TABLE_Z])
     lid.add_freejoint(name="lid:joint")
-    box_geom(lid, "lid", [LID, LID, LID_THICK / 2], [0, 0, 0], "lid_mat", mass=0.3, condim=4)
+    # The lid keeps MuJoCo's default contacts, not the room's stiff ones (fetch.robot.ROOM_SOLREF):
+    # with stiff contacts on both sides, the thin light plate pressed between the fingers and a wall
+    # made the simulation unstable under abuse (it flew off at hundreds of m/s; bench_abuse.py).
+    soft = {"solref": LID_SOLREF, "solimp": LID_SOLIMP}
+    box_geom(lid, "lid", [LID, LID, LID_THICK / 2], [0, 0, 0], "lid_mat", mass=0.3, condim=4, **soft)
     box_geom(lid, "lid_handle", list(HANDLE), [0, 0, LID_THICK / 2 + HANDLE[2]], "handle_mat",
-             mass=0.05, condim=4)
+             mass=0.05, condim=4, **soft)
     lid.add_site(name="lid", size=[0.01, 0.01, 0.01], rgba=[0, 0, 0, 0])
 
 
