@@ -315,6 +315,7 @@ def main(argv: list[str] | None = None) -> int:
 def choices_table(results: pathlib.Path) -> str:
     """The table of `train_choices.py`'s runs (one seed each), if it has run."""
     runs = [json.loads(p.read_text()) for p in sorted((results / "choices").glob("*.json"))]
+    runs = [r for r in runs if r.get("seed", 0) == 0]  # other training seeds: train_choices.py --seed
     if not runs:
         return ""
     variants = sorted({r["variant"] for r in runs}, key=lambda v: (v != "dart-5k", v))
@@ -325,7 +326,7 @@ def choices_table(results: pathlib.Path) -> str:
              "Each variant changes one thing from `dart-5k` (mlp-chunk, 5000 steps): `dartstop` demos end 10 steps "
              "after success; `c20` 20-action chunks; `512x3` a wider, deeper MLP; `on05` observation noise 0.05; "
              "`gru` the recurrent policy (128 units, windows of 10 steps); `gru50` with windows of the whole 50-step "
-             "demo (batches of 64); `10k`/`30k` longer training. "
+             "demo (batches of 64); `10k`/`30k` longer training; `x5` an ensemble of 5 (`--members 5`). "
              "Success % over 100 episodes; the last row is the mean training CPU time.", "",
              "| task | " + " | ".join(variants) + " |", "|---|" + "---|" * len(variants)]
     for task in tasks:

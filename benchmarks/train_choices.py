@@ -7,8 +7,9 @@ collected there once) and its training and evaluation (100 episodes on unseen se
 changes one thing from `dart-5k` (mlp-chunk, 5000 steps): `dartstop` ends the demos 10 steps after
 success, `c20` predicts 20-action chunks, `512x3` a wider, deeper MLP, `on05` observation noise
 0.05, `gru` the recurrent policy (10-step windows), `gru50` with windows of the whole 50-step demo
-(batches of 64 windows), `10k`/`30k` longer training. One JSON file per run (a run already
-done is skipped), and a line per run as it finishes.
+(batches of 64 windows), `10k`/`30k` longer training, `x5` an ensemble of 5 (`--members 5`).
+`--seed` picks the training seed (0 by default; others are stored under their own names). One
+JSON file per run (a run already done is skipped), and a line per run as it finishes.
 """
 
 from __future__ import annotations
@@ -32,28 +33,31 @@ VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
     "dart-5k-on05": ("dart", 5000, {}, {"obs_noise": 0.05}),
     "dart-5k-gru": ("dart", 5000, {"kind": "gru"}, {}),
     "dart-5k-gru50": ("dart", 5000, {"kind": "gru", "seq_len": 50}, {"batch_size": 64}),
+    "dart-5k-x5": ("dart", 5000, {"members": 5}, {}),
+    "dart-5k-c20-x5": ("dart", 5000, {"chunk": 20, "members": 5}, {}),
 }
 """variant: (recording, gradient steps, policy settings, training settings)."""
 
 
-def run(results: pathlib.Path, task: str, variant: str) -> dict[str, Any] | None:
+def run(results: pathlib.Path, task: str, variant: str, seed: int = 0) -> dict[str, Any] | None:
     from fetch.learn import load
     from fetch.learn.evaluate import evaluate
     from fetch.learn.policies import KIND_DEFAULTS
     from fetch.learn.train import TrainConfig, train
 
-    target = results / "choices" / f"{task}__{variant}.json"
+    name = f"{task}__{variant}" + (f"__s{seed}" if seed else "")
+    target = results / "choices" / f"{name}.json"
     if target.exists():
         return None
     recording, steps, net, extra = VARIANTS[variant]
     data = lc.collected(results, task, recording, 100)
     kind = net.get("kind", "mlp-chunk")
     policy = {**KIND_DEFAULTS.get(kind, {}), "kind": kind, **net}
-    config = TrainConfig(steps=steps, seed=0, demos=100, **extra)
+    config = TrainConfig(steps=steps, seed=seed, demos=100, **extra)
     start, cpu = time.perf_counter(), time.process_time()
-    trained = train(data, results / "choices_runs" / f"{task}__{variant}", policy, config,
+    trained = train(data, results / "choices_runs" / name, policy, config,
                     log=lambda _: None, show_progress=False)
-    out = {"task": task, "variant": variant, "train_seconds": time.perf_counter() - start,
+    out = {"task": task, "variant": variant, "seed": seed, "train_seconds": time.perf_counter() - start,
            "train_cpu_seconds": time.process_time() - cpu, "valid_loss": trained.valid_loss,
            **evaluate(load(trained.run), lc.EPISODES).as_dict()}
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -65,6 +69,7 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("runs", nargs="+", metavar="TASK:VARIANT", help=f"variants: {', '.join(VARIANTS)}")
     p.add_argument("--results", default="/tmp/gym-fetch-learning-curves", help="as learning_curves.py's")
+    p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     args = p.parse_args()
     import fetch  # noqa: F401  (registers the ids)
 
@@ -73,7 +78,7 @@ def main() -> int:
         if variant not in VARIANTS or task not in lc.ALL_TASKS:
             p.error(f"{spec!r}: want TASK:VARIANT, TASK one of {', '.join(lc.ALL_TASKS)}, "
                     f"VARIANT one of {', '.join(VARIANTS)}")
-        out = run(pathlib.Path(args.results), task, variant)
+        out = run(pathlib.Path(args.results), task, variant, args.seed)
         if out is not None:
             print(f"{task} {variant}: {100 * out['success_rate']:.0f}% (train {out['train_cpu_seconds']:.0f} s CPU)",
                   flush=True)
