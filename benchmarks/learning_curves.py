@@ -54,16 +54,22 @@ POLICY_VARIANTS: dict[str, dict[str, Any]] = {
     "gru": {"kind": "gru"},
 }
 """Policies compared: the default chunked MLP, plain BC (chunk 1), and the recurrent policy."""
-ENSEMBLES: dict[str, dict[str, Any]] = {"mlp-chunk-x5": {"kind": "mlp-chunk", "members": 5}}
-"""What `--policy auto` trains where it is an ensemble."""
+MEASURED_VARIANTS: dict[str, dict[str, Any]] = {
+    "mlp-chunk-x5": {"kind": "mlp-chunk", "members": 5},
+    "mlp-chunk-x5-offsets": {"kind": "mlp-chunk", "members": 5, "goal_offsets": True},
+    "gru-offsets": {"kind": "gru", "goal_offsets": True},
+}
+"""What `--policy auto` trains where it adds settings to a kind (fetch.learn.MEASURED_SETTINGS): an
+ensemble, goal offsets."""
 
 
 def auto_variant(task: str) -> str:
-    """The name (a `POLICY_VARIANTS` or `ENSEMBLES` key) of what `gym-fetch train --policy auto` trains on `task`."""
+    """The name (a `POLICY_VARIANTS` or `MEASURED_VARIANTS` key) of what `gym-fetch train --policy auto` trains
+    on `task`."""
     from fetch.learn import auto_settings
 
     settings = auto_settings(task)
-    return next((name for name, variant in ENSEMBLES.items() if variant == settings), settings["kind"])
+    return next((name for name, variant in MEASURED_VARIANTS.items() if variant == settings), settings["kind"])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -136,7 +142,7 @@ def train_and_evaluate(dataset: pathlib.Path, run_dir: pathlib.Path, policy_name
     from fetch.learn.policies import KIND_DEFAULTS
     from fetch.learn.train import TrainConfig, train
 
-    policy = dict({**POLICY_VARIANTS, **ENSEMBLES}[policy_name])
+    policy = dict({**POLICY_VARIANTS, **MEASURED_VARIANTS}[policy_name])
     policy = {**KIND_DEFAULTS.get(policy["kind"], {}), **policy}
     config = TrainConfig(steps=steps, seed=seed, demos=demos)
     start, cpu = time.perf_counter(), time.process_time()

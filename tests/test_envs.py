@@ -278,6 +278,13 @@ def test_the_hand_driven_down_onto_the_object_sinks_into_nothing_by_more_than_5_
     assert deepest <= 0.005, f"{deepest * 1000:.1f} mm deep"
 
 
+def test_every_observation_starts_with_the_grip_position(env: gym.Env) -> None:
+    """fetch.learn's goal offsets read the grip site there (fetch.learn.data.GRIP)."""
+    from fetch.learn.data import GRIP
+
+    assert env.unwrapped.observation_layout["grip_pos"] == GRIP
+
+
 def test_an_action_moves_the_target_by_5_cm_per_axis_from_the_hand(env_id: str) -> None:
     """The classic suite's rule: the target is the hand's pose plus 0.05 * a on each axis, so a
     full diagonal leads the hand by 8.7 cm (no clamp on the lead)."""

@@ -185,6 +185,48 @@ def test_a_single_network_checkpoint_without_members_still_loads(torch, reach: p
     assert load(tmp_path / "run").config.members == 1
 
 
+@pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])
+def test_a_policy_with_goal_offsets_sees_the_goal_relative_to_the_achieved_goal_and_the_hand(
+        torch, reach: pathlib.Path, tmp_path, kind: str) -> None:  # noqa: ANN001
+    from fetch.learn.data import flat_obs
+    from fetch.learn.runtime import load
+
+    assert _train(reach, tmp_path / "plain", "--policy", kind, "--steps", "20") == 0
+    assert _train(reach, tmp_path / "run", "--policy", kind, "--steps", "20", "--goal-offsets") == 0
+    plain, policy = load(tmp_path / "plain"), load(tmp_path / "run")
+    assert policy.config.goal_offsets and not plain.config.goal_offsets
+    assert policy.config.obs_size == plain.config.obs_size + 6
+    env = gym.make("Reach-v2")
+    obs, _ = env.reset(seed=3)
+    # Built by hand from the observation dict: the state, the goal, goal - achieved, goal - grip.
+    goal, achieved, grip = obs["desired_goal"], obs["achieved_goal"], obs["observation"][:3]
+    x = np.concatenate([obs["observation"], goal, goal - achieved, goal - grip]).astype(np.float32)
+    np.testing.assert_allclose(flat_obs(obs, goal_offsets=True), x, atol=1e-6)
+    with torch.no_grad():
+        net = torch.from_numpy(policy.normalizer(x)[None])
+        expected = (policy.model.step(net[:, None, :], None)[0][0, 0] if kind == "gru" else policy.model(net)[0, 0])
+    policy.reset()
+    np.testing.assert_allclose(policy(obs), np.clip(expected.numpy(), -1, 1), atol=1e-5)
+    env.close()
+
+
+def test_a_checkpoint_without_goal_offsets_loads_without_them(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    """Runs trained before goal offsets existed store no `goal_offsets` setting: they see what they saw."""
+    from fetch.learn.runtime import load
+
+    assert _train(reach, tmp_path / "run", "--steps", "20") == 0
+    path = tmp_path / "run" / "checkpoint.pt"
+    state = torch.load(path, weights_only=True)
+    del state["policy"]["goal_offsets"]
+    torch.save(state, path)
+    policy = load(tmp_path / "run")
+    assert not policy.config.goal_offsets
+    env = gym.make("Reach-v2")
+    policy.reset()
+    assert policy(env.reset(seed=0)[0]).shape == (4,)
+    env.close()
+
+
 def test_a_recurrent_policy_trains_and_acts(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
     from fetch.learn.runtime import load
 
@@ -359,7 +401,7 @@ def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib
 
     assert set(MEASURED_POLICY) | set(MEASURED_SETTINGS) <= set(ENV_IDS), "every exception names a registered task"
     assert policy_for("Drawer-close-v2") == "mlp-chunk" and policy_for("Reach-v2") == "gru"
-    assert auto_settings("Push-v2") == {"kind": "mlp-chunk", "members": 5}
+    assert auto_settings("Push-v2") == {"kind": "mlp-chunk", "members": 5, "goal_offsets": True}
     assert auto_settings("Reach-v2") == {"kind": "gru"}
     assert _train(reach, tmp_path / "run", "--steps", "20") == 0  # --policy auto
     assert load(tmp_path / "run").config.kind == policy_for("Reach-v2")
@@ -367,6 +409,7 @@ def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib
     assert main(["collect", "--env", "Push-v2", "--device", "expert", "--episodes", "3", "--render", "none",
                  "--max-steps", "50", "--out", str(push)]) == 0
     assert _train(push, tmp_path / "push-run", "--steps", "5") == 0
-    assert load(tmp_path / "push-run").config.members == 5
-    assert _train(push, tmp_path / "push-one", "--steps", "5", "--members", "1") == 0  # a flag overrides auto
-    assert load(tmp_path / "push-one").config.members == 1
+    assert load(tmp_path / "push-run").config.members == 5 and load(tmp_path / "push-run").config.goal_offsets
+    assert _train(push, tmp_path / "push-one", "--steps", "5", "--members", "1", "--no-goal-offsets") == 0
+    one = load(tmp_path / "push-one").config  # flags override auto
+    assert one.members == 1 and not one.goal_offsets

@@ -21,9 +21,10 @@ whose action chunks carry the timing of the push; on Push the two tie (57 and 59
 trains ~7x faster."""
 
 
-MEASURED_SETTINGS: dict[str, dict[str, Any]] = {"Push-v2": {"members": 5}}
-"""Settings `--policy auto` adds on tasks where they measured better (docs/learning_curves.md): on Push
-an ensemble of 5 networks, 71 % against one network's 63 % (3 training seeds each)."""
+MEASURED_SETTINGS: dict[str, dict[str, Any]] = {"Push-v2": {"members": 5, "goal_offsets": True}}
+"""Settings `--policy auto` adds on tasks where they measured better (docs/learning_curves.md, 3 training
+seeds each, 500 evaluation episodes): on Push an ensemble of 5 networks (78.6 % against one network's
+71.2 %) that also sees the goal's offsets (`--goal-offsets`: 79.9 %)."""
 
 
 def policy_for(env_id: str) -> str:

@@ -18,7 +18,8 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", default="auto", choices=("auto", *POLICY_KINDS),
                    help="auto (default): the policy measured best on the dataset's task, gru but for "
                         f"{', '.join(sorted(MEASURED_POLICY))} (mlp-chunk), an ensemble of 5 on "
-                        f"{', '.join(sorted(MEASURED_SETTINGS))} (docs/learning_curves.md); gru: a "
+                        f"{', '.join(sorted(t for t, s in MEASURED_SETTINGS.items() if s.get('members')))}, "
+                        "goal offsets where --goal-offsets says (docs/learning_curves.md); gru: a "
                         "recurrent policy (BC-RNN); mlp-chunk: an MLP predicting chunks of actions with ACT's "
                         "temporal ensembling, ~7x faster to train")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial weights and the batches (default 0)")
@@ -36,7 +37,11 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--members", type=int, default=None,
                    help="an ensemble: train this many networks side by side from different initial weights "
                         "and act on their mean; takes that many times as long (default 1; --policy auto: 5 on "
-                        f"{', '.join(sorted(MEASURED_SETTINGS))})")
+                        f"{', '.join(sorted(t for t, s in MEASURED_SETTINGS.items() if s.get('members')))})")
+    p.add_argument("--goal-offsets", action=argparse.BooleanOptionalAction, default=None,
+                   help="also feed the policy the goal relative to the achieved goal and to the grip site "
+                        "(6 more inputs; default off; --policy auto: on for "
+                        f"{', '.join(sorted(t for t, s in MEASURED_SETTINGS.items() if s.get('goal_offsets')))})")
     p.add_argument("--obs-noise", type=float, default=0.0,
                    help="std of noise on the normalised observations while training (default 0)")
     p.add_argument("--checkpoint-every", type=int, default=1000,
@@ -55,7 +60,7 @@ def run_train(args: argparse.Namespace) -> int:
     chosen = auto_settings(demos.env_id) if args.policy == "auto" else {"kind": args.policy}
     kind = chosen["kind"]
     policy = {**KIND_DEFAULTS.get(kind, {}), **chosen}
-    for name in ("chunk", "seq_len", "hidden", "layers", "members"):
+    for name in ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets"):
         if getattr(args, name) is not None:
             policy[name] = getattr(args, name)
     if kind == "gru" and args.chunk is not None:

@@ -20,7 +20,7 @@ import torch
 from torch import nn
 
 from fetch.errors import FetchError, UnknownNameError
-from fetch.learn.data import Episode, chunk_targets
+from fetch.learn.data import Episode, chunk_targets, policy_inputs
 
 ACTION_SIZE = 4
 
@@ -42,6 +42,8 @@ class PolicyConfig:
     loss: str = "l1"
     members: int = 1
     """networks trained side by side from different initial weights; the policy acts on their mean."""
+    goal_offsets: bool = False
+    """also see the goal relative to the achieved goal and to the grip site (`data.with_goal_offsets`)."""
 
     def __post_init__(self) -> None:
         if self.kind not in POLICIES:
@@ -52,6 +54,8 @@ class PolicyConfig:
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 raise FetchError(f"policy {name} must be a whole number >= 1, got {value!r}")
+        if not isinstance(self.goal_offsets, bool):
+            raise FetchError(f"goal_offsets must be true or false, got {self.goal_offsets!r}")
         if not self.ensemble_decay >= 0:
             raise FetchError(f"ensemble_decay must be >= 0, got {self.ensemble_decay!r}")
 
@@ -142,7 +146,7 @@ def samples(config: PolicyConfig, episodes: Sequence[Episode], normalize: Any) -
     """Every training example of `episodes`, inputs normalised by `normalize`."""
     xs, ys, ms = [], [], []
     for e in episodes:
-        obs = normalize(e.obs)
+        obs = normalize(policy_inputs(e, config.goal_offsets))
         if config.kind == "gru":
             # A window starts at every step; past the demo's end the last observation repeats, masked out.
             x, m = chunk_targets(obs, config.seq_len)

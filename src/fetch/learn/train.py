@@ -16,7 +16,7 @@ import torch
 
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
-from fetch.learn.data import Demos, Normalizer, load_demos
+from fetch.learn.data import Demos, Normalizer, load_demos, policy_inputs
 from fetch.learn.policies import PolicyConfig, Samples, build, masked_loss, samples
 
 
@@ -112,11 +112,12 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
         if len(demos.train) < config.demos:
             raise FetchError(f"--demos {config.demos}: {demos.origin} has only {len(demos.train)} demos in mask/train")
         demos = dataclasses.replace(demos, train=demos.train[:config.demos])
-    policy_config = PolicyConfig(obs_size=demos.obs_size, **policy)
+    offsets = bool(policy.get("goal_offsets", False))
+    policy_config = PolicyConfig(obs_size=policy_inputs(demos.train[0], offsets).shape[1], **policy)
     torch.set_num_threads(config.threads)
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(config.seed)
-    norm = Normalizer.fit(demos.train)
+    norm = Normalizer.fit(demos.train, policy_config.goal_offsets)
     model = build(policy_config)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     source = {"dataset": demos.origin, "env_id": demos.env_id,
