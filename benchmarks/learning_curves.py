@@ -193,8 +193,8 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
     sections = (("## 100 expert demos, every task, with the defaults (the bar: >= 80 % on all but Slide)",
                  "Recorded as `gym-fetch collect --device expert` now does (DART noise 0.1, to the horizon; the "
                  "policy learns `expert_actions`), trained with `gym-fetch train`'s default policy (`auto`: gru, "
-                 "but mlp-chunk on Drawer-close, and on Push an ensemble of 5 mlp-chunks), whose choice is in "
-                 "the last table here.",
+                 "but mlp-chunk on Drawer-close, and on Push an ensemble of 5 mlp-chunks with goal offsets), "
+                 "whose choice is in the last table here.",
                  "dart", None),
                 ("## 100 expert demos, every task, as first measured",
                  "Recorded as the collector did before (no noise, ending 10 steps after success), policy "
