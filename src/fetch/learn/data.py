@@ -15,7 +15,7 @@ OBS_KEYS = ("observation", "desired_goal")
 the object's position, which `observation` already holds)."""
 
 GRIP = slice(0, 3)
-"""Where the grip site's position is in every task's observation: first (tests/test_learn.py holds it)."""
+"""Where the grip site's position is in every task's observation: first (tests/test_envs.py holds it)."""
 
 
 def flat_obs(obs: Mapping[str, np.ndarray], goal_offsets: bool = False) -> np.ndarray:
