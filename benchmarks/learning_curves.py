@@ -79,18 +79,24 @@ class Job:
     policy: str
     demos: int
     seed: int
+    steps: int | None = None
+    """gradient steps where `gym-fetch train` takes other than the default (fetch.learn.MEASURED_STEPS);
+    None: the benchmark's `--steps`."""
 
     @property
     def name(self) -> str:
-        return f"{self.task}__{self.recording}__{self.policy}__n{self.demos}__s{self.seed}"
+        more = f"__{self.steps}steps" if self.steps else ""
+        return f"{self.task}__{self.recording}__{self.policy}__n{self.demos}__s{self.seed}{more}"
 
 
 def jobs() -> Iterator[Job]:
     """Every run, in the order they are worth having: one training seed of everything (the 100-demo point
     on every task, which is the bar, then the comparisons and the curves), then the next seed."""
-    for seed in SEEDS:  # the bar, with the defaults: DART recording, `gym-fetch train --policy auto`
+    from fetch.learn import MEASURED_STEPS
+
+    for seed in SEEDS:  # the bar, with the defaults: DART recording, `gym-fetch train --policy auto`, its steps
         for task in ALL_TASKS:
-            yield Job(task, "dart", auto_variant(task), 100, seed)
+            yield Job(task, "dart", auto_variant(task), 100, seed, MEASURED_STEPS.get(task))
     for seed in SEEDS:
         for task in ALL_TASKS:
             yield Job(task, "stop", "mlp-chunk", 100, seed)
@@ -129,7 +135,8 @@ def collected(results: pathlib.Path, task: str, recording: str, demos: int) -> p
 
 def run(job: Job, results: pathlib.Path, steps: int) -> dict[str, Any]:
     dataset = collected(results, job.task, job.recording, job.demos)
-    outcome = train_and_evaluate(dataset, results / "runs" / job.name, job.policy, job.seed, steps, job.demos)
+    outcome = train_and_evaluate(dataset, results / "runs" / job.name, job.policy, job.seed, job.steps or steps,
+                                 job.demos)
     return {**dataclasses.asdict(job), **outcome}
 
 
@@ -182,13 +189,17 @@ def _cell(rows: list[dict[str, Any]]) -> str:
 def report(results: list[dict[str, Any]], steps: int) -> str:
     """The markdown table of every result so far."""
 
+    from fetch.learn import MEASURED_STEPS
+
     def pick(**match: Any) -> list[dict[str, Any]]:
         return [r for r in results if all(r[k] == v for k, v in match.items())]
 
     lines = ["# Learning curves", "",
              "Written by `benchmarks/learning_curves.py` (see its docstring); success % is `is_success` at step 50",
              f"of {EPISODES} evaluation episodes on seeds from 1,000,000 up (none from the data), mean ± std over the",
-             f"training seeds that have finished (their count in brackets). {steps} gradient steps per run, "
+             f"training seeds that have finished (their count in brackets). {steps} gradient steps per run "
+             f"({', '.join(f'{n} on {t}' for t, n in sorted(MEASURED_STEPS.items()))}'s first row, as `gym-fetch "
+             "train` takes there), "
              "one thread, a machine of 2 cores shared with other work.", ""]
     sections = (("## 100 expert demos, every task, with the defaults (the bar: >= 80 % on all but Slide)",
                  "Recorded as `gym-fetch collect --device expert` now does (DART noise 0.1, to the horizon; the "
@@ -206,7 +217,9 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
                   "| train wall [s] |", "|---|" + "---|" * (5 if named else 4)]
         for task in ALL_TASKS:
             policy = kind or auto_variant(task)
-            rows = pick(task=task, recording=recording, policy=policy, demos=100)
+            # The bar's runs take the steps `gym-fetch train` takes on the task (a result's `steps`: those it took).
+            rows = pick(task=task, recording=recording, policy=policy, demos=100,
+                        **({"steps": MEASURED_STEPS.get(task, steps)} if named else {}))
             length = f"{np.mean([r['mean_length'] for r in rows]):.1f}" if rows else ""
             cpu = [r["train_cpu_seconds"] for r in rows if "train_cpu_seconds" in r]
             seconds = f"{np.mean(cpu):.0f}" if cpu else ""

@@ -394,6 +394,21 @@ def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  
     assert main(["eval", str(tmp_path / "run"), "--episodes", "4", "--envs", "4"]) == 0
 
 
+def test_train_takes_the_steps_measured_for_the_task_unless_told(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    import fetch.learn
+    from fetch.learn import DEFAULT_STEPS, MEASURED_STEPS, default_steps
+    from fetch.tasks import ENV_IDS
+
+    assert set(MEASURED_STEPS) <= set(ENV_IDS)
+    assert default_steps("Bin-pick-v2") == 10000 and default_steps("Reach-v2") == DEFAULT_STEPS == 5000
+    monkeypatch.setitem(fetch.learn.MEASURED_STEPS, "Reach-v2", 30)  # a measured exception, small enough for a test
+    assert _train(reach, tmp_path / "auto") == 0
+    assert fetch.learn.load(tmp_path / "auto").trained_steps == 30
+    assert _train(reach, tmp_path / "told", "--steps", "20") == 0
+    assert fetch.learn.load(tmp_path / "told").trained_steps == 20
+
+
 def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
     from fetch.learn import MEASURED_POLICY, MEASURED_SETTINGS, auto_settings, policy_for
     from fetch.learn.runtime import load

@@ -7,7 +7,16 @@ import json
 import pathlib
 
 from fetch.errors import FetchError
-from fetch.learn import MEASURED_POLICY, MEASURED_SETTINGS, POLICY_KINDS, auto_settings, require_torch
+from fetch.learn import (
+    DEFAULT_STEPS,
+    MEASURED_POLICY,
+    MEASURED_SETTINGS,
+    MEASURED_STEPS,
+    POLICY_KINDS,
+    auto_settings,
+    default_steps,
+    require_torch,
+)
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
@@ -24,7 +33,9 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                         "temporal ensembling, ~7x faster to train")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial weights and the batches (default 0)")
     length = p.add_mutually_exclusive_group()
-    length.add_argument("--steps", type=int, default=None, help="gradient steps (default 5000)")
+    length.add_argument("--steps", type=int, default=None,
+                        help=f"gradient steps (default {DEFAULT_STEPS}; "
+                             + ", ".join(f"{n} on {t}" for t, n in sorted(MEASURED_STEPS.items())) + ")")
     length.add_argument("--epochs", type=int, default=None,
                         help="passes over the training examples, instead of --steps")
     p.add_argument("--demos", type=int, default=0, help="train on the first N demos of mask/train (default 0: all)")
@@ -69,7 +80,7 @@ def run_train(args: argparse.Namespace) -> int:
     if kind == "mlp-chunk" and args.seq_len is not None:
         raise FetchError(f"--seq-len is for --policy gru; {args.policy} trains mlp-chunk here, which reads one "
                          "observation")
-    steps = args.steps if args.steps is not None else 5000
+    steps = args.steps if args.steps is not None else default_steps(demos.env_id)
     if args.epochs is not None:
         if args.epochs < 1:
             raise FetchError(f"--epochs must be a whole number >= 1, got {args.epochs}")
