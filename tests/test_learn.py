@@ -173,16 +173,24 @@ def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reac
     env.close()
 
 
-def test_a_single_network_checkpoint_without_members_still_loads(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
-    """Runs trained before ensembles existed store no `members` setting: they load as one network."""
+@pytest.mark.parametrize(("setting", "before"), [("members", 1), ("goal_offsets", False)])
+def test_a_checkpoint_from_before_a_setting_existed_loads_as_it_was(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
+                                                                   setting: str, before: object) -> None:
+    """Runs trained before ensembles or goal offsets existed store no such setting: they load as one
+    network that sees what it saw, and act."""
     from fetch.learn.runtime import load
 
     assert _train(reach, tmp_path / "run", "--steps", "20") == 0
     path = tmp_path / "run" / "checkpoint.pt"
     state = torch.load(path, weights_only=True)
-    del state["policy"]["members"]
+    del state["policy"][setting]
     torch.save(state, path)
-    assert load(tmp_path / "run").config.members == 1
+    policy = load(tmp_path / "run")
+    assert getattr(policy.config, setting) == before
+    env = gym.make("Reach-v2")
+    policy.reset()
+    assert policy(env.reset(seed=0)[0]).shape == (4,)
+    env.close()
 
 
 @pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])
@@ -207,23 +215,6 @@ def test_a_policy_with_goal_offsets_sees_the_goal_relative_to_the_achieved_goal_
         expected = (policy.model.step(net[:, None, :], None)[0][0, 0] if kind == "gru" else policy.model(net)[0, 0])
     policy.reset()
     np.testing.assert_allclose(policy(obs), np.clip(expected.numpy(), -1, 1), atol=1e-5)
-    env.close()
-
-
-def test_a_checkpoint_without_goal_offsets_loads_without_them(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
-    """Runs trained before goal offsets existed store no `goal_offsets` setting: they see what they saw."""
-    from fetch.learn.runtime import load
-
-    assert _train(reach, tmp_path / "run", "--steps", "20") == 0
-    path = tmp_path / "run" / "checkpoint.pt"
-    state = torch.load(path, weights_only=True)
-    del state["policy"]["goal_offsets"]
-    torch.save(state, path)
-    policy = load(tmp_path / "run")
-    assert not policy.config.goal_offsets
-    env = gym.make("Reach-v2")
-    policy.reset()
-    assert policy(env.reset(seed=0)[0]).shape == (4,)
     env.close()
 
 

@@ -341,7 +341,7 @@ class Slide(Expert):
         """[m] how far the strike should send the puck to rest, for it to be within reach of the
         goal `distance` [m] away by the episode's last step: further than the goal if a glide that
         stops there would still be on its way (success is judged at the last step, not at rest)."""
-        diagonal = bool(self.line[0] != 0.0 and self.line[1] != 0.0)
+        diagonal = _is_diagonal(self.line)
         left = (self.horizon - self.steps - STRIKE_STEPS) * CONTROL_DT
         if not np.array_equal(self.target, self.goal) or left <= 0.0:
             return distance

@@ -19,6 +19,11 @@ from fetch.learn import (
 )
 
 
+def _auto_tasks(setting: str) -> str:
+    """The tasks on which `--policy auto` turns `setting` on (fetch.learn.MEASURED_SETTINGS)."""
+    return ", ".join(sorted(task for task, settings in MEASURED_SETTINGS.items() if settings.get(setting)))
+
+
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("dataset", help="a dataset directory (from gym-fetch collect) or file (e.g. from merge)")
     p.add_argument("--out", required=True, metavar="RUN",
@@ -27,7 +32,7 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", default="auto", choices=("auto", *POLICY_KINDS),
                    help="auto (default): the policy measured best on the dataset's task, gru but for "
                         f"{', '.join(sorted(MEASURED_POLICY))} (mlp-chunk), an ensemble of 5 on "
-                        f"{', '.join(sorted(t for t, s in MEASURED_SETTINGS.items() if s.get('members')))}, "
+                        f"{_auto_tasks('members')}, "
                         "goal offsets where --goal-offsets says (docs/learning_curves.md); gru: a "
                         "recurrent policy (BC-RNN); mlp-chunk: an MLP predicting chunks of actions with ACT's "
                         "temporal ensembling, ~7x faster to train")
@@ -48,11 +53,11 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--members", type=int, default=None,
                    help="an ensemble: train this many networks side by side from different initial weights "
                         "and act on their mean; takes that many times as long (default 1; --policy auto: 5 on "
-                        f"{', '.join(sorted(t for t, s in MEASURED_SETTINGS.items() if s.get('members')))})")
+                        f"{_auto_tasks('members')})")
     p.add_argument("--goal-offsets", action=argparse.BooleanOptionalAction, default=None,
                    help="also feed the policy the goal relative to the achieved goal and to the grip site "
                         "(6 more inputs; default off; --policy auto: on for "
-                        f"{', '.join(sorted(t for t, s in MEASURED_SETTINGS.items() if s.get('goal_offsets')))})")
+                        f"{_auto_tasks('goal_offsets')})")
     p.add_argument("--obs-noise", type=float, default=0.0,
                    help="std of noise on the normalised observations while training (default 0)")
     p.add_argument("--checkpoint-every", type=int, default=1000,
