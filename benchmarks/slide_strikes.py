@@ -12,6 +12,7 @@ from counts as 0. Sizes are made non-decreasing (a longer strike never plans a s
 
     .venv/bin/python benchmarks/slide_strikes.py                 # ~3 min, writes the table
     .venv/bin/python benchmarks/slide_strikes.py --out /tmp/t.npz --print
+    .venv/bin/python benchmarks/slide_strikes.py --spread 100        # ~6 min: strikes under action noise 0.1
 
 The table ships as src/fetch/assets/slide_strikes.npz; `fetch.experts.slide` reads it.
 """
@@ -44,9 +45,11 @@ SETTLE_STEPS = 150
 """[steps] at most this long for the line-up, the strike and the glide."""
 
 
-def strike(env: gym.Env, xy: tuple[float, float], line: tuple[float, float], size: float) -> np.ndarray | None:
+def strike(env: gym.Env, xy: tuple[float, float], line: tuple[float, float], size: float,
+           noise: float = 0.0, rng: np.random.Generator | None = None) -> np.ndarray | None:
     """The puck's displacement [m, xy] from one strike from rest at `xy`, or None if the hand
-    never got to strike."""
+    never got to strike; with `noise`, every action (line-up and strike) gets Gaussian noise of
+    that std, as expert_success.py adds it."""
     env.reset(seed=0)
     model, data = env.unwrapped.model, env.unwrapped.data
     joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "object0:joint")
@@ -61,6 +64,8 @@ def strike(env: gym.Env, xy: tuple[float, float], line: tuple[float, float], siz
         action = expert(obs)
         if expert.stage is Stage.PUSH and before is None:
             before, struck_at = obs["observation"][layout["object_pos"]][:2].copy(), step
+        if noise and rng is not None:
+            action = action + rng.normal(0.0, noise, size=4).astype(np.float32)
         obs = env.step(action)[0]
         speed = np.linalg.norm(obs["observation"][layout["object_velp"]][:2]) / CONTROL_DT
         if before is not None and step > struck_at + 4 and speed < 0.003:
@@ -100,11 +105,49 @@ def measure(kind: str) -> np.ndarray:
     return np.maximum.accumulate(np.round(table, 3), axis=2)
 
 
+SPREAD_FROM = ((1.1, CENTRE_Y), (1.2, CENTRE_Y + 0.15))
+"""[m] where the puck rests before the strikes `spread` measures: in front of the shoulder and out to the side."""
+SPREAD_SIZES = (0.3, 0.5, 0.7, 0.9)
+
+
+def spread(trials: int, noise: float, tolerance: float = 0.05) -> None:
+    """Print how far strikes of each size land from where the same strike lands without noise,
+    under action noise `noise`: what a policy that aims by striking can rely on."""
+    env = gym.make("Slide-v2").unwrapped
+    rng = np.random.default_rng(0)
+    print(f"{trials} strikes per row under action noise {noise} (mujoco {mujoco.__version__}); "
+          f"displacements against the same strike without noise\n")
+    print(f"| puck at [m] | line | size | without noise [cm] | along: mean / std [cm] | across: std [cm] "
+          f"| within {100 * tolerance:.0f} cm of it |")
+    print("|---|---|---|---|---|---|---|")
+    for xy in SPREAD_FROM:
+        for line in ((1.0, 0.0), (1.0, 1.0)):
+            unit = np.asarray(line) / np.hypot(*line)
+            normal = np.array([-unit[1], unit[0]])
+            for size in SPREAD_SIZES:
+                plain = strike(env, xy, line, size)
+                noisy = [strike(env, xy, line, size, noise, rng) for _ in range(trials)]
+                if plain is None:
+                    continue
+                moved = np.array([m for m in noisy if m is not None])
+                along, across = moved @ unit, moved @ normal
+                within = np.linalg.norm(moved - plain, axis=1) < tolerance
+                print(f"| ({xy[0]:.2f}, {xy[1]:.2f}) | {'x' if line[1] == 0 else 'diagonal'} | {size} "
+                      f"| {100 * float(plain @ unit):.1f} | {100 * along.mean():.1f} / {100 * along.std():.1f} "
+                      f"| {100 * across.std():.1f} | {within.sum() / trials:.0%} |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=pathlib.Path, default=STRIKE_TABLE, help="where to write the table")
     parser.add_argument("--print", action="store_true", help="print the tables")
+    parser.add_argument("--spread", type=int, default=0, metavar="TRIALS",
+                        help="instead: how far TRIALS noisy strikes of each size land from the noiseless one")
+    parser.add_argument("--noise", type=float, default=0.1, help="the action noise's std for --spread")
     args = parser.parse_args()
+    if args.spread:
+        spread(args.spread, args.noise)
+        return
     tables = {kind: measure(kind) for kind in TABLES}
     np.savez(args.out, xs=np.array(XS), across=np.array(ACROSS), sizes=np.array(SIZES), **tables)
     print(f"wrote {args.out} (mujoco {mujoco.__version__})")
