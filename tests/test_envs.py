@@ -248,17 +248,19 @@ def test_workspace_limits_hold_a_stick_held_for_200_steps(env_id: str, direction
     assert u.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0
 
 
-@pytest.mark.parametrize("env_id", [
-    "Bin-pick-v2", "Bin-place-v2", "Drawer-open-v2", "Drawer-close-v2",
-    *(pytest.param(e, marks=pytest.mark.xfail(strict=True, reason=(
+@pytest.mark.parametrize(("env_id", "limit"), [
+    ("Bin-pick-v2", 0.005), ("Bin-place-v2", 0.005), ("Drawer-open-v2", 0.0005), ("Drawer-close-v2", 0.0005),
+    *(pytest.param(e, 0.005, marks=pytest.mark.xfail(strict=True, reason=(
         "the lid keeps MuJoCo's soft contacts (stiff ones made it unstable) and the closed fingers "
         "sink ~4 cm into it: it needs a hand whose push is force-limited (issue 20)")))
       for e in ("Box-open-v2", "Box-close-v2")),
 ])
-def test_the_hand_driven_down_onto_the_object_sinks_into_nothing_by_more_than_5_mm(env_id: str) -> None:
+def test_the_hand_driven_down_onto_the_object_sinks_in_by_a_few_mm_at_most(env_id: str, limit: float) -> None:
     """Fingers shut, 8 cm over the task's object, then a stick held down at full speed. With MuJoCo's
     default contacts the block sank 36-40 mm into the table or the bin's floor and the fingers 17-24 mm
-    into the drawer's handle; the room's stiff contacts (fetch.robot.ROOM_SOLREF) keep it to a few mm.
+    into the drawer's handle; the room's stiff contacts (fetch.robot.ROOM_SOLREF) keep it to a few mm,
+    and in the drawer tasks, where the fingers meet the furniture with its stiff contacts alone
+    (fetch.robot.firm_furniture; 1.3-2.8 mm with an even mix of the two), to nothing.
     benchmarks/bench_abuse.py has the figures under random abuse."""
     env = gym.make(env_id, max_episode_steps=500)
     u = env.unwrapped
@@ -275,7 +277,7 @@ def test_the_hand_driven_down_onto_the_object_sinks_into_nothing_by_more_than_5_
             obs, *_ = env.step(np.array([0.0, 0.0, -1.0, -1.0], dtype=np.float32))
             if data.ncon:
                 deepest = max(deepest, -float(data.contact.dist[: data.ncon].min()))
-    assert deepest <= 0.005, f"{deepest * 1000:.1f} mm deep"
+    assert deepest <= limit, f"{deepest * 1000:.1f} mm deep"
 
 
 def test_every_observation_starts_with_the_grip_position(env: gym.Env) -> None:

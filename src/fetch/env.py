@@ -18,7 +18,7 @@ from gymnasium.error import ResetNeeded
 from fetch import observation as ob
 from fetch import rendering
 from fetch.errors import FetchError, UnknownNameError
-from fetch.robot import ACTION_STEP, GRIPPER_QUAT, Robot, build_spec
+from fetch.robot import ACTION_STEP, GRIPPER_QUAT, Robot, build_spec, firm_furniture
 from fetch.tasks import task_class
 from fetch.tasks.base import Start, Task, goal_distance, mocap_index
 from fetch.timing import CONTROL_DT, N_SUBSTEPS
@@ -73,6 +73,8 @@ def _compile(task_type: type[Task]) -> _Compiled:
     task = task_type()
     spec = build_spec(task_type.robot)
     task.build(spec)
+    if task_type.firm_furniture:
+        firm_furniture(spec)
     ob.add_sensors(spec, task_type.parts)
     model = spec.compile()
     data = mujoco.MjData(model)

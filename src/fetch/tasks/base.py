@@ -73,6 +73,9 @@ class Task(abc.ABC):
     """how success is judged, in words (the README's task table shows it)."""
     subtasks: ClassVar[tuple[Subtask, ...]] = ()
     """the object-centric parts of its demos, in order (`fetch.tasks.subtasks`; demo generation)."""
+    firm_furniture: ClassVar[bool] = False
+    """whether the fingers meet the room's furniture with its stiff contacts (`fetch.robot.firm_furniture`):
+    where nothing free can be pinched between the two (bench_abuse.py)."""
 
     @abc.abstractmethod
     def build(self, spec: mujoco.MjSpec) -> None:
