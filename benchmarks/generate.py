@@ -188,17 +188,18 @@ TRAINED = ("generated", "sources")
 
 def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[str, Any]],
             path: pathlib.Path) -> dict[str, Any]:
-    """Train `gym-fetch train`'s default policy for the task on `kind` and evaluate it (one training seed)."""
-    from fetch.learn.train import TrainConfig
+    """Train `gym-fetch train`'s default policy for the task, with its steps, on `kind` and evaluate it (one
+    training seed)."""
+    from fetch.learn import default_steps
     from learning_curves import auto_variant, train_and_evaluate  # the harness of the 100-expert-demo figures
 
     policy = auto_variant(env_id)
-    key = f"policy/{kind}/{env_id}/{policy}"
+    steps = default_steps(env_id)
+    key = policy_key(kind, env_id)
     if key in results:
         return results[key]
     dataset = root / (f"gen-expert-{env_id}" if kind == "generated" else f"src-expert-{env_id}")
-    outcome = train_and_evaluate(dataset, root / "runs" / f"{kind}-{env_id}-{policy}", policy, 0,
-                                 TrainConfig().steps)
+    outcome = train_and_evaluate(dataset, root / "runs" / f"{kind}-{env_id}-{policy}", policy, 0, steps)
     row = {"key": key, "task": env_id, "trained_on": kind, "policy": policy, **outcome,
            "load": os.getloadavg()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     keep(row, results, path)
@@ -206,13 +207,24 @@ def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[
     return row
 
 
+def policy_key(kind: str, env_id: str) -> str:
+    """A trained policy's key in the results: what it was trained on, the policy and, where `gym-fetch train`
+    takes other than its default steps on the task, those (results from before that setting lack them)."""
+    from fetch.learn import DEFAULT_STEPS, default_steps
+    from learning_curves import auto_variant
+
+    steps = default_steps(env_id)
+    return f"policy/{kind}/{env_id}/{auto_variant(env_id)}" + (f"/{steps}steps" if steps != DEFAULT_STEPS else "")
+
+
 def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves: pathlib.Path) -> None:
     """Policy success trained on generated demos, on their sources, and (from learning_curves.py) on 100 expert
     demos; the bar is generated >= expert-100."""
+    from fetch.learn import default_steps
     from learning_curves import auto_variant
     from learning_curves import load_results as curve_results
 
-    if not any(f"policy/{kind}/{t}/{auto_variant(t)}" in results for kind in TRAINED for t in tasks):
+    if not any(policy_key(kind, t) in results for kind in TRAINED for t in tasks):
         return
 
     curve_rows = curve_results(curves) if (curves / "results").is_dir() else []
@@ -221,15 +233,16 @@ def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves:
     print("|---|---|---|---|---|---|")
     for env_id in tasks:
         policy = auto_variant(env_id)
-        cells = [f"{100 * row['success_rate']:.0f}" if (row := results.get(f"policy/{kind}/{env_id}/{policy}"))
+        cells = [f"{100 * row['success_rate']:.0f}" if (row := results.get(policy_key(kind, env_id)))
                  else "-" for kind in TRAINED]
         expert = [r["success_rate"] for r in curve_rows
-                  if (r["task"], r["recording"], r["policy"], r["demos"]) == (env_id, "dart", policy, 100)]
+                  if (r["task"], r["recording"], r["policy"], r["demos"], r["steps"])
+                  == (env_id, "dart", policy, 100, default_steps(env_id))]
         reference, verdict = "-", ""
         if expert:
             mean = float(np.mean(expert))
             reference = f"{100 * mean:.0f} ({len(expert)} seeds)"
-            if row := results.get(f"policy/generated/{env_id}/{policy}"):
+            if row := results.get(policy_key("generated", env_id)):
                 verdict = "yes" if row["success_rate"] >= mean else "no"
         print(f"| `{env_id}` | {policy} | {cells[0]} | {cells[1]} | {reference} | {verdict} |")
 
