@@ -44,6 +44,7 @@ RECORDINGS: dict[str, tuple[str, ...]] = {
     "hold": ("--expert-noise", "0", "--no-stop-on-success"),
     "dart": (),
     "dartstop": ("--stop-on-success",),
+    "dart2": ("--expert-noise", "0.2"),
 }
 """`collect --device expert --max-steps 50` flags of each recording ("dart": the collector's defaults)."""
 COMPARED = ("stop", "hold", "dart")
@@ -301,6 +302,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--shard", default="0/1", metavar="K/N",
                    help="run only the tasks of shard K of N (each task's data stays in one shard): one "
                         "process per core, e.g. 0/2 and 1/2 (default %(default)s: everything)")
+    p.add_argument("--tasks", default=",".join(ALL_TASKS),
+                   help="run only these tasks' jobs (comma-separated; default: all)")
     p.add_argument("--report-only", action="store_true", help="rewrite the table and plot from the results; no runs")
     args = p.parse_args(argv)
     import fetch  # noqa: F401  (registers the ids)
@@ -312,9 +315,12 @@ def main(argv: list[str] | None = None) -> int:
     docs = pathlib.Path(args.docs)
     (docs / "images").mkdir(parents=True, exist_ok=True)
     shard, shards = (int(x) for x in args.shard.split("/"))
+    tasks = args.tasks.split(",")
+    if unknown := sorted(set(tasks) - set(ALL_TASKS)):
+        p.error(f"--tasks: unknown {', '.join(unknown)}; choose from {', '.join(ALL_TASKS)}")
     new = 0
     for job in ([] if args.report_only else list(jobs())):
-        if ALL_TASKS.index(job.task) % shards != shard:
+        if ALL_TASKS.index(job.task) % shards != shard or job.task not in tasks:
             continue
         target = results / "results" / f"{job.name}.json"
         if target.exists():

@@ -35,6 +35,17 @@ VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
     "dart-5k-gru50": ("dart", 5000, {"kind": "gru", "seq_len": 50}, {"batch_size": 64}),
     "dart-5k-x5": ("dart", 5000, {"members": 5}, {}),
     "dart-5k-c20-x5": ("dart", 5000, {"chunk": 20, "members": 5}, {}),
+    "dart-5k-x5-off": ("dart", 5000, {"members": 5, "goal_offsets": True}, {}),
+    "dart2-5k-x5-off": ("dart2", 5000, {"members": 5, "goal_offsets": True}, {}),
+    "dart-2k-x5-off": ("dart", 2000, {"members": 5, "goal_offsets": True}, {}),
+    "dart-3k-x5-off": ("dart", 3000, {"members": 5, "goal_offsets": True}, {}),
+    "dart-5k-gru-off": ("dart", 5000, {"kind": "gru", "goal_offsets": True}, {}),
+    "dart-5k-x10-off": ("dart", 5000, {"members": 10, "goal_offsets": True}, {}),
+    "dart-5k-c5-x5-off": ("dart", 5000, {"chunk": 5, "members": 5, "goal_offsets": True}, {}),
+    "dart-5k-512-x5-off": ("dart", 5000, {"hidden": 512, "members": 5, "goal_offsets": True}, {}),
+    "dart-10k-x5-off": ("dart", 10000, {"members": 5, "goal_offsets": True}, {}),
+    "dart-20k-x5-off": ("dart", 20000, {"members": 5, "goal_offsets": True}, {}),
+    "dart-5k-x5-off-on05": ("dart", 5000, {"members": 5, "goal_offsets": True}, {"obs_noise": 0.05}),
 }
 """variant: (recording, gradient steps, policy settings, training settings)."""
 
