@@ -7,7 +7,10 @@ collected there once) and its training and evaluation (100 episodes on unseen se
 changes one thing from `dart-5k` (mlp-chunk, 5000 steps): `dartstop` ends the demos 10 steps after
 success, `c20` predicts 20-action chunks, `512x3` a wider, deeper MLP, `on05` observation noise
 0.05, `gru` the recurrent policy (10-step windows), `gru50` with windows of the whole 50-step demo
-(batches of 64 windows), `10k`/`30k` longer training, `x5` an ensemble of 5 (`--members 5`).
+(batches of 64 windows), `10k`/`30k` longer training, `x5` an ensemble of 5 (`--members 5`). The `-off`
+variants start from Push's `auto` (`x5` with `--goal-offsets`) and change its steps (`2k` ... `20k`),
+members (`x10`), chunk (`c5`), width (`512`), observation noise (`on05`), kind (`gru`), or the
+recording (`dart2`: DART noise 0.2).
 `--seed` picks the training seed (0 by default; others are stored under their own names). One
 JSON file per run (a run already done is skipped), and a line per run as it finishes.
 """
