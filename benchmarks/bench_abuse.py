@@ -25,10 +25,7 @@ import numpy as np
 
 import fetch
 from expert_success import evaluate  # benchmarks/ is the script's directory, so on sys.path
-from fetch.robot import ROOM_SOLIMP, ROOM_SOLREF
-
-MUJOCO_SOLREF, MUJOCO_SOLIMP = (0.02, 1.0), (0.9, 0.95, 0.001, 0.5, 2.0)
-"""MuJoCo's default contact parameters: what our room's geoms had before ROOM_SOLREF."""
+from fetch.robot import MUJOCO_SOLIMP, MUJOCO_SOLREF, ROOM_SOLIMP, ROOM_SOLREF
 
 
 def room_geoms(env: gym.Env) -> list[int]:

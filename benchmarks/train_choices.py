@@ -26,6 +26,8 @@ from typing import Any
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import learning_curves as lc  # noqa: E402
 
+PUSH_AUTO = lc.MEASURED_VARIANTS["mlp-chunk-x5-offsets"]
+"""What `--policy auto` trains on Push, where the `-off` variants start."""
 VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
     "dart-5k": ("dart", 5000, {}, {}),
     "dart-10k": ("dart", 10000, {}, {}),
@@ -38,17 +40,17 @@ VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
     "dart-5k-gru50": ("dart", 5000, {"kind": "gru", "seq_len": 50}, {"batch_size": 64}),
     "dart-5k-x5": ("dart", 5000, {"members": 5}, {}),
     "dart-5k-c20-x5": ("dart", 5000, {"chunk": 20, "members": 5}, {}),
-    "dart-5k-x5-off": ("dart", 5000, {"members": 5, "goal_offsets": True}, {}),
-    "dart2-5k-x5-off": ("dart2", 5000, {"members": 5, "goal_offsets": True}, {}),
-    "dart-2k-x5-off": ("dart", 2000, {"members": 5, "goal_offsets": True}, {}),
-    "dart-3k-x5-off": ("dart", 3000, {"members": 5, "goal_offsets": True}, {}),
+    "dart-5k-x5-off": ("dart", 5000, PUSH_AUTO, {}),
+    "dart2-5k-x5-off": ("dart2", 5000, PUSH_AUTO, {}),
+    "dart-2k-x5-off": ("dart", 2000, PUSH_AUTO, {}),
+    "dart-3k-x5-off": ("dart", 3000, PUSH_AUTO, {}),
     "dart-5k-gru-off": ("dart", 5000, {"kind": "gru", "goal_offsets": True}, {}),
-    "dart-5k-x10-off": ("dart", 5000, {"members": 10, "goal_offsets": True}, {}),
-    "dart-5k-c5-x5-off": ("dart", 5000, {"chunk": 5, "members": 5, "goal_offsets": True}, {}),
-    "dart-5k-512-x5-off": ("dart", 5000, {"hidden": 512, "members": 5, "goal_offsets": True}, {}),
-    "dart-10k-x5-off": ("dart", 10000, {"members": 5, "goal_offsets": True}, {}),
-    "dart-20k-x5-off": ("dart", 20000, {"members": 5, "goal_offsets": True}, {}),
-    "dart-5k-x5-off-on05": ("dart", 5000, {"members": 5, "goal_offsets": True}, {"obs_noise": 0.05}),
+    "dart-5k-x10-off": ("dart", 5000, {**PUSH_AUTO, "members": 10}, {}),
+    "dart-5k-c5-x5-off": ("dart", 5000, {**PUSH_AUTO, "chunk": 5}, {}),
+    "dart-5k-512-x5-off": ("dart", 5000, {**PUSH_AUTO, "hidden": 512}, {}),
+    "dart-10k-x5-off": ("dart", 10000, PUSH_AUTO, {}),
+    "dart-20k-x5-off": ("dart", 20000, PUSH_AUTO, {}),
+    "dart-5k-x5-off-on05": ("dart", 5000, PUSH_AUTO, {"obs_noise": 0.05}),
 }
 """variant: (recording, gradient steps, policy settings, training settings)."""
 

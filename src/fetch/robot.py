@@ -82,6 +82,9 @@ With the default, a block the hand drives into the table or a bin wall sank up t
 with these, <= 5 mm (benchmarks/bench_abuse.py, docs/benchmarks.md)."""
 ROOM_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 """... and an impedance near 1 at any depth (MuJoCo's default: 0.9 to 0.95), so they barely yield."""
+MUJOCO_SOLREF, MUJOCO_SOLIMP = (0.02, 1.0), (0.9, 0.95, 0.001, 0.5, 2.0)
+"""MuJoCo's default contact parameters: what the room's geoms had before ROOM_SOLREF, and what the
+Box tasks' lid keeps."""
 FURNITURE_SOLMIX = 1000.0
 """The weight of furniture's contact parameters against the robot's where the two touch, in tasks
 that ask for it (`Task.firm_furniture`). MuJoCo averages a contact's solref and solimp by the geoms'

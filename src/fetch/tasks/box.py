@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 
 from fetch import observation as ob
-from fetch.robot import RobotConfig
+from fetch.robot import MUJOCO_SOLIMP, MUJOCO_SOLREF, RobotConfig
 from fetch.tasks.base import TABLE_TOP, FreeObject, Start, Task, box_geom, mocap_index, object_parts
 from fetch.tasks.subtasks import GOAL, Grasped, Lifted, Subtask
 
@@ -27,8 +27,6 @@ SEAT_XY = 0.02
 """[m] a seated lid's centre is within this of the box's axis (it still covers the opening)."""
 SEAT_Z = 0.01
 """[m] ... and within this of the seated height (so it lies flat on the walls)."""
-LID_SOLREF, LID_SOLIMP = [0.02, 1.0], [0.9, 0.95, 0.001, 0.5, 2.0]
-"""The lid's contacts: MuJoCo's defaults (see add_box_and_lid)."""
 BESIDE = (0.20, 0.24)
 """[m] a lid beside the box has its centre this far from the box's along x or y: >= 3 cm gap."""
 
@@ -47,7 +45,7 @@ def add_box_and_lid(spec: mujoco.MjSpec) -> None:
     # The lid keeps MuJoCo's default contacts, not the room's stiff ones (fetch.robot.ROOM_SOLREF):
     # with stiff contacts on both sides, the thin light plate pressed between the fingers and a wall
     # made the simulation unstable under abuse (it flew off at hundreds of m/s; bench_abuse.py).
-    soft = {"solref": LID_SOLREF, "solimp": LID_SOLIMP}
+    soft = {"solref": list(MUJOCO_SOLREF), "solimp": list(MUJOCO_SOLIMP)}
     box_geom(lid, "lid", [LID, LID, LID_THICK / 2], [0, 0, 0], "lid_mat", mass=0.3, condim=4, **soft)
     box_geom(lid, "lid_handle", list(HANDLE), [0, 0, LID_THICK / 2 + HANDLE[2]], "handle_mat",
              mass=0.05, condim=4, **soft)
