@@ -59,17 +59,19 @@ MEASURED_VARIANTS: dict[str, dict[str, Any]] = {
     "mlp-chunk-x5": {"kind": "mlp-chunk", "members": 5},
     "mlp-chunk-x5-offsets": {"kind": "mlp-chunk", "members": 5, "goal_offsets": True},
     "gru-offsets": {"kind": "gru", "goal_offsets": True},
+    "mlp-chunk-x5-offsets-mirror": {"kind": "mlp-chunk", "members": 5, "goal_offsets": True, "mirror": True},
 }
 """What `--policy auto` trains where it adds settings to a kind (fetch.learn.MEASURED_SETTINGS): an
-ensemble, goal offsets."""
+ensemble, goal offsets; `mirror` is the training setting (fetch.learn.MEASURED_MIRROR: the demos'
+mirror images too)."""
 
 
 def auto_variant(task: str) -> str:
     """The name (a `POLICY_VARIANTS` or `MEASURED_VARIANTS` key) of what `gym-fetch train --policy auto` trains
     on `task`."""
-    from fetch.learn import auto_settings
+    from fetch.learn import MEASURED_MIRROR, auto_settings
 
-    settings = auto_settings(task)
+    settings = {**auto_settings(task), **({"mirror": True} if task in MEASURED_MIRROR else {})}
     return next((name for name, variant in MEASURED_VARIANTS.items() if variant == settings), settings["kind"])
 
 
@@ -151,8 +153,9 @@ def train_and_evaluate(dataset: pathlib.Path, run_dir: pathlib.Path, policy_name
     from fetch.learn.train import TrainConfig, train
 
     policy = dict({**POLICY_VARIANTS, **MEASURED_VARIANTS}[policy_name])
+    mirror = bool(policy.pop("mirror", False))
     policy = {**KIND_DEFAULTS.get(policy["kind"], {}), **policy}
-    config = TrainConfig(steps=steps, seed=seed, demos=demos)
+    config = TrainConfig(steps=steps, seed=seed, demos=demos, mirror=mirror)
     start, cpu = time.perf_counter(), time.process_time()
     trained = train(dataset, run_dir, policy, config, log=lambda _: None, show_progress=False)
     train_s, train_cpu = time.perf_counter() - start, time.process_time() - cpu

@@ -416,6 +416,38 @@ def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib
                  "--max-steps", "50", "--out", str(push)]) == 0
     assert _train(push, tmp_path / "push-run", "--steps", "5") == 0
     assert load(tmp_path / "push-run").config.members == 5 and load(tmp_path / "push-run").config.goal_offsets
-    assert _train(push, tmp_path / "push-one", "--steps", "5", "--members", "1", "--no-goal-offsets") == 0
+    assert _checkpoint(torch, tmp_path / "push-run")["train"]["mirror"]  # fetch.learn.MEASURED_MIRROR
+    assert _train(push, tmp_path / "push-one", "--steps", "5", "--members", "1", "--no-goal-offsets",
+                  "--no-mirror") == 0
     one = load(tmp_path / "push-one").config  # flags override auto
     assert one.members == 1 and not one.goal_offsets
+    assert not _checkpoint(torch, tmp_path / "push-one")["train"]["mirror"]
+
+
+def _checkpoint(torch, run: pathlib.Path) -> dict:  # noqa: ANN001
+    return torch.load(run / "checkpoint.pt", weights_only=True)
+
+
+def test_mirror_learns_from_each_demo_and_its_mirror_image(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
+                                                           capsys) -> None:
+    assert _train(reach, tmp_path / "plain", "--steps", "30", "--policy", "mlp-chunk") == 0
+    assert _train(reach, tmp_path / "mirror", "--steps", "30", "--policy", "mlp-chunk", "--mirror") == 0
+    assert "11 Reach-v2 demos and their mirror images" in capsys.readouterr().out
+    plain, mirror = _checkpoint(torch, tmp_path / "plain"), _checkpoint(torch, tmp_path / "mirror")
+    assert mirror["train"]["mirror"] and not plain["train"]["mirror"]
+    # Normalisation statistics come from both: the mean hand y is now the plane's (the start's).
+    start_y = gym.make("Reach-v2").reset(seed=0)[0]["observation"][1]
+    assert abs(float(mirror["norm"]["mean"][1]) - start_y) < 1e-4 < abs(float(plain["norm"]["mean"][1]) - start_y)
+    assert not _same(plain["model"], mirror["model"])
+
+
+def test_mirror_on_a_task_that_is_not_symmetric_is_refused_before_anything_is_written(
+        torch, tmp_path, capsys) -> None:  # noqa: ANN001
+    slide = tmp_path / "slide"
+    assert main(["collect", "--env", "Slide-v2", "--device", "expert", "--episodes", "3", "--render", "none",
+                 "--max-steps", "50", "--out", str(slide)]) == 0
+    capsys.readouterr()
+    assert main(["train", str(slide), "--out", str(tmp_path / "run"), "--mirror", *TINY]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "Slide-v2 is not symmetric" in err and "Reach-v2, Push-v2, PickPlace-v2" in err, err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "run").exists()

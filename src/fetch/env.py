@@ -8,7 +8,7 @@ import functools
 import hashlib
 import math
 import pathlib
-from typing import Any, SupportsFloat
+from typing import Any, NamedTuple, SupportsFloat
 
 import gymnasium as gym
 import mujoco
@@ -19,8 +19,8 @@ from fetch import observation as ob
 from fetch import rendering
 from fetch.errors import FetchError, UnknownNameError
 from fetch.robot import ACTION_STEP, GRIPPER_QUAT, Robot, build_spec, firm_furniture
-from fetch.tasks import task_class
-from fetch.tasks.base import Start, Task, goal_distance, mocap_index
+from fetch.tasks import REGISTRATIONS, task_class
+from fetch.tasks.base import FINGER_PAIRS, Start, Task, goal_distance, mocap_index
 from fetch.timing import CONTROL_DT, N_SUBSTEPS
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -127,6 +127,15 @@ def _settle_room(model: mujoco.MjModel, data: mujoco.MjData, robot: Robot) -> St
     mujoco.mj_forward(model, data)
     robot.hold()
     return Start(data.site_xpos[robot.grip_site].copy(), None)
+
+
+class Reflection(NamedTuple):
+    """A task's reflection (`FetchEnv.reflection`): of its observation vector, of its goals, and the
+    sign that each action component takes (the hand's y move flips; the fingers do not)."""
+
+    observation: ob.Mirror
+    goal: ob.Mirror
+    action_sign: np.ndarray
 
 
 class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
@@ -315,6 +324,19 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """The observation and info of the current state (e.g. after `set_state`)."""
         return self._observe()
+
+    def reflection(self) -> Reflection:
+        """How a step of this task reflects in the vertical x-z plane through the start's grip site,
+        for tasks symmetric about it (`Task.mirrors`): a reflected demo is a demo of the task."""
+        if not self.task.mirrors:
+            raise FetchError(f"{self.spec.id if self.spec else self.task.name} is not symmetric about the plane "
+                             f"through its start (its scene or its start is not); tasks that are: "
+                             f"{', '.join(r.env_id for r in REGISTRATIONS if r.task.mirrors)}")
+        plane = float(self._start.grip[1])
+        parts = self.task.parts
+        goal = next(p for p in parts if p.name == self.task.achieved)
+        return Reflection(ob.mirror(parts, plane, FINGER_PAIRS), ob.mirror((goal,), plane, {}),
+                          np.array([1.0, -1.0, 1.0, 1.0]))
 
     # -- rendering -----------------------------------------------------------------------
 

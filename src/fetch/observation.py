@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -105,6 +107,52 @@ def layout(parts: tuple[Part, ...]) -> dict[str, slice]:
         out[part.name] = slice(start, start + part.size)
         start += part.size
     return out
+
+
+class Mirror(NamedTuple):
+    """A reflection of observation vectors in a vertical x-z plane (y -> 2 * plane - y), as order,
+    sign and offset arrays: `mirrored = x[..., order] * sign + offset`."""
+
+    order: np.ndarray
+    sign: np.ndarray
+    offset: np.ndarray
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return x[..., self.order] * self.sign + self.offset
+
+
+_MIRROR_SIGNS = {"framelinvel": (1.0, -1.0, 1.0), "frameangvel": (-1.0, 1.0, -1.0)}
+"""Velocities flip their y; an angular velocity is a pseudovector, so its x and z flip instead."""
+
+
+def mirror(parts: tuple[Part, ...], plane: float, pairs: Mapping[str, str]) -> Mirror:
+    """The reflection of the observation of `parts` in the plane y = `plane` [m, world]: positions
+    reflect, relative positions and velocities flip their y, rotations (Euler angles) and angular
+    velocities their x and z, and each joint reading swaps with its mirror image's (`pairs`, both
+    ways, e.g. the left and right finger), which must be in the same part."""
+    size = sum(p.size for p in parts)
+    order, sign, offset = np.arange(size), np.ones(size), np.zeros(size)
+    for part, where in zip(parts, layout(parts).values(), strict=True):
+        if part.euler:
+            sign[where] = (-1.0, 1.0, -1.0)
+            continue
+        row = where.start
+        names = [c.reading.target for c in part.components]
+        for comp in part.components:
+            kind = comp.reading.kind
+            if kind in _MIRROR_SIGNS:
+                sign[row:row + 3] = _MIRROR_SIGNS[kind]
+            elif kind == "framepos":
+                sign[row + 1] = -1.0
+                offset[row + 1] = 0.0 if comp.minus is not None else 2.0 * plane
+            else:  # one joint's reading
+                partner = pairs.get(comp.reading.target)
+                if partner not in names:
+                    raise ValueError(f"part {part.name!r} reads joint {comp.reading.target!r}, whose mirror "
+                                     f"image is not in the part (pairs: {dict(pairs)})")
+                order[row] = where.start + names.index(partner)
+            row += comp.reading.size
+    return Mirror(order, sign, offset)
 
 
 def readings(parts: tuple[Part, ...]) -> list[Reading]:

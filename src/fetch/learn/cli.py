@@ -9,6 +9,7 @@ import pathlib
 from fetch.errors import FetchError
 from fetch.learn import (
     DEFAULT_STEPS,
+    MEASURED_MIRROR,
     MEASURED_POLICY,
     MEASURED_SETTINGS,
     MEASURED_STEPS,
@@ -17,6 +18,7 @@ from fetch.learn import (
     default_steps,
     require_torch,
 )
+from fetch.tasks import REGISTRATIONS
 
 
 def _auto_tasks(setting: str) -> str:
@@ -58,6 +60,10 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                    help="also feed the policy the goal relative to the achieved goal and to the grip site "
                         "(6 more inputs; default off; --policy auto: on for "
                         f"{_auto_tasks('goal_offsets')})")
+    p.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
+                   help="also learn from each demo's mirror image in the vertical plane through the start "
+                        f"(tasks symmetric about it: {', '.join(r.env_id for r in REGISTRATIONS if r.task.mirrors)}; "
+                        f"default off; --policy auto: on for {', '.join(sorted(MEASURED_MIRROR))})")
     p.add_argument("--obs-noise", type=float, default=0.0,
                    help="std of noise on the normalised observations while training (default 0)")
     p.add_argument("--checkpoint-every", type=int, default=1000,
@@ -85,6 +91,7 @@ def run_train(args: argparse.Namespace) -> int:
     if kind == "mlp-chunk" and args.seq_len is not None:
         raise FetchError(f"--seq-len is for --policy gru; {args.policy} trains mlp-chunk here, which reads one "
                          "observation")
+    mirror = args.mirror if args.mirror is not None else args.policy == "auto" and demos.env_id in MEASURED_MIRROR
     steps = args.steps if args.steps is not None else default_steps(demos.env_id)
     if args.epochs is not None:
         if args.epochs < 1:
@@ -93,14 +100,15 @@ def run_train(args: argparse.Namespace) -> int:
         count = sum(len(e.actions) for e in used)
         steps = args.epochs * max(1, count // max(1, min(args.batch_size, count)))
     config = TrainConfig(steps=steps, batch_size=args.batch_size, lr=args.lr, obs_noise=args.obs_noise,
-                         seed=args.seed, demos=args.demos, checkpoint_every=args.checkpoint_every,
+                         seed=args.seed, demos=args.demos, mirror=mirror, checkpoint_every=args.checkpoint_every,
                          threads=args.threads)
     result = train(demos, args.out, policy, config)
     valid = "none (no valid split)" if result.valid_loss is None else f"{result.valid_loss:.4f}"
     resumed = f", resumed at step {result.resumed_from}" if result.resumed_from else ""
     members = f" ({policy['members']} members)" if policy.get("members", 1) > 1 else ""
-    print(f"trained {kind}{members} on {len(demos.train[:args.demos or None])} {demos.env_id} demos for {result.steps} "
-          f"steps{resumed}: train loss {result.train_loss:.4f}, valid loss {valid}; "
+    mirrored = " and their mirror images" if mirror else ""
+    print(f"trained {kind}{members} on {len(demos.train[:args.demos or None])} {demos.env_id} demos{mirrored} for "
+          f"{result.steps} steps{resumed}: train loss {result.train_loss:.4f}, valid loss {valid}; "
           f"evaluate with: gym-fetch eval {args.out}")
     return 0
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -88,6 +89,30 @@ def load_demos(path: str | os.PathLike[str]) -> Demos:
     if not train:
         raise DatasetError(f"{where}: mask/train lists no demo with a step; a policy needs at least one")
     return Demos(str(where), env_id, env_kwargs, train, valid, seeds)
+
+
+def with_reflections(demos: Demos) -> Demos:
+    """`demos` with each training demo's mirror image added (`gym-fetch train --mirror`): the demo
+    reflected in the vertical plane through the start's grip site, which on a symmetric task
+    (`fetch.env.FetchEnv.reflection`) is another demo of it, the expert's actions reflected too.
+    Validation stays as recorded."""
+    import gymnasium as gym
+
+    kwargs: dict[str, Any] = dict(demos.env_kwargs)
+    env = gym.make(demos.env_id, **kwargs)
+    try:
+        reflection = env.unwrapped.reflection()  # type: ignore[attr-defined]
+    finally:
+        env.close()
+    size = reflection.observation.order.shape[0]
+    sign = reflection.action_sign.astype(np.float32)
+
+    def reflect(e: Episode) -> Episode:
+        obs = np.concatenate([reflection.observation(e.obs[:, :size]), reflection.goal(e.obs[:, size:])], axis=1)
+        return Episode(f"{e.name} (mirrored)", e.seed, obs.astype(np.float32), e.actions * sign,
+                       reflection.goal(e.achieved).astype(np.float32))
+
+    return dataclasses.replace(demos, train=demos.train + tuple(reflect(e) for e in demos.train))
 
 
 def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:

@@ -16,7 +16,7 @@ import torch
 
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
-from fetch.learn.data import Demos, Normalizer, load_demos, policy_inputs
+from fetch.learn.data import Demos, Normalizer, load_demos, policy_inputs, with_reflections
 from fetch.learn.policies import PolicyConfig, Samples, build, masked_loss, samples
 
 
@@ -35,6 +35,8 @@ class TrainConfig:
     seed: int = 0
     demos: int = 0
     """Train on the first `demos` of mask/train (0: all)."""
+    mirror: bool = False
+    """Also learn from each training demo's mirror image (`data.with_reflections`; symmetric tasks only)."""
     checkpoint_every: int = 1000
     """[steps] between checkpoints (and validation losses); one is also written at the end."""
     threads: int = 1
@@ -112,6 +114,11 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
         if len(demos.train) < config.demos:
             raise FetchError(f"--demos {config.demos}: {demos.origin} has only {len(demos.train)} demos in mask/train")
         demos = dataclasses.replace(demos, train=demos.train[:config.demos])
+    source = {"dataset": demos.origin, "env_id": demos.env_id,
+              "env_kwargs": json.dumps(demos.env_kwargs, sort_keys=True),
+              "train_demos": [e.name for e in demos.train]}
+    if config.mirror:
+        demos = with_reflections(demos)
     offsets = bool(policy.get("goal_offsets", False))
     policy_config = PolicyConfig(obs_size=policy_inputs(demos.train[0], offsets).shape[1], **policy)
     torch.set_num_threads(config.threads)
@@ -120,14 +127,14 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     norm = Normalizer.fit(demos.train, policy_config.goal_offsets)
     model = build(policy_config)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    source = {"dataset": demos.origin, "env_id": demos.env_id,
-              "env_kwargs": json.dumps(demos.env_kwargs, sort_keys=True),
-              "train_demos": [e.name for e in demos.train]}
     history: dict[str, list[float]] = {"step": [], "train_loss": [], "valid_loss": []}
     start = 0
     previous = ckpt.read(run) if ckpt.path(run).exists() else None
     if previous is not None:
-        ckpt.require_same(run, previous, policy_config.as_dict(), dataclasses.asdict(config), source)
+        # A run saved before a training setting existed had that setting's default.
+        saved = {**dataclasses.asdict(TrainConfig()), **previous["train"]}
+        ckpt.require_same(run, {**previous, "train": saved}, policy_config.as_dict(), dataclasses.asdict(config),
+                          source)
         model.load_state_dict(previous["model"])
         optimizer.load_state_dict(previous["optimizer"])
         torch.set_rng_state(previous["rng"])

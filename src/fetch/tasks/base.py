@@ -23,6 +23,8 @@ DISTANCE_THRESHOLD = 0.05
 
 GRIP = "robot0:grip"
 FINGERS = ("robot0:r_gripper_finger_joint", "robot0:l_gripper_finger_joint")
+FINGER_PAIRS = {FINGERS[0]: FINGERS[1], FINGERS[1]: FINGERS[0]}
+"""Each finger's mirror image in the hand's plane of symmetry."""
 
 GRIPPER_PARTS: tuple[ob.Part, ...] = (
     ob.site_pos("grip_pos", GRIP),
@@ -73,6 +75,10 @@ class Task(abc.ABC):
     """how success is judged, in words (the README's task table shows it)."""
     subtasks: ClassVar[tuple[Subtask, ...]] = ()
     """the object-centric parts of its demos, in order (`fetch.tasks.subtasks`; demo generation)."""
+    mirrors: ClassVar[bool] = False
+    """whether the scene and the start are symmetric about the vertical x-z plane through the start's
+    grip site, so a demo reflected in it is a demo of the task (`gym-fetch train --mirror`; a test
+    checks the scene, the start and the hand's motion of each task that says so)."""
     firm_furniture: ClassVar[bool] = False
     """whether the fingers meet the room's furniture with its stiff contacts (`fetch.robot.firm_furniture`):
     where nothing free can be pinched between the two (bench_abuse.py)."""

@@ -35,6 +35,7 @@ class Reach(_ClassicTask):
     robot = RobotConfig(scene="reach.xml", workspace=None, block_gripper=True)
     parts = GRIPPER_PARTS
     achieved = "grip_pos"
+    mirrors = True
     subtasks = (Subtask("reach", GOAL, None),)
     target_range = 0.15
 
@@ -87,6 +88,7 @@ class Push(_ObjectTask):
     name = "push"
     robot = RobotConfig(scene="push.xml", workspace=None, block_gripper=True)
     params = ObjectGoal(obj_range=0.15, target_range=0.15)
+    mirrors = True
     # Both parts are framed along the line from the object to the goal.
     subtasks = (Subtask("approach", "object0", Beside("object0"), heading=GOAL),
                 Subtask("push", GOAL, None, heading="object0"))
@@ -98,6 +100,7 @@ class PickPlace(_ObjectTask):
     name = "pick_place"
     robot = RobotConfig(scene="pick_and_place.xml", workspace=None)
     params = ObjectGoal(obj_range=0.15, target_range=0.15, target_in_the_air=True)
+    mirrors = True
     subtasks = (Subtask("grasp", "object0", Grasped("object0")), Subtask("place", GOAL, None))
 
 
