@@ -202,13 +202,14 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
              "Written by `benchmarks/learning_curves.py` (see its docstring); success % is `is_success` at step 50",
              f"of {EPISODES} evaluation episodes on seeds from 1,000,000 up (none from the data), mean ± std over the",
              f"training seeds that have finished (their count in brackets). {steps} gradient steps per run "
-             f"({', '.join(f'{n} on {t}' for t, n in sorted(MEASURED_STEPS.items()))}'s first row, as `gym-fetch "
-             "train` takes there), "
+             f"({'; '.join(f'{n} on {t}' for t, n in sorted(MEASURED_STEPS.items()))} in the first table, as "
+             "`gym-fetch train` takes there), "
              "one thread, a machine of 2 cores shared with other work.", ""]
     sections = (("## 100 expert demos, every task, with the defaults (the bar: >= 80 % on all but Slide)",
                  "Recorded as `gym-fetch collect --device expert` now does (DART noise 0.1, to the horizon; the "
                  "policy learns `expert_actions`), trained with `gym-fetch train`'s default policy (`auto`: gru, "
-                 "but mlp-chunk on Drawer-close, and on Push an ensemble of 5 mlp-chunks with goal offsets), "
+                 "but mlp-chunk on Drawer-close, and on Push an ensemble of 5 mlp-chunks with goal offsets that also "
+                 "learns from the demos' mirror images), "
                  "whose choice is in the last table here.",
                  "dart", None),
                 ("## 100 expert demos, every task, as first measured",

@@ -9,8 +9,8 @@ success, `c20` predicts 20-action chunks, `512x3` a wider, deeper MLP, `on05` ob
 0.05, `gru` the recurrent policy (10-step windows), `gru50` with windows of the whole 50-step demo
 (batches of 64 windows), `10k`/`30k` longer training, `x5` an ensemble of 5 (`--members 5`). The `-off`
 variants start from Push's `auto` (`x5` with `--goal-offsets`) and change its steps (`2k` ... `20k`),
-members (`x10`), chunk (`c5`), width (`512`), observation noise (`on05`), kind (`gru`), or the
-recording (`dart2`: DART noise 0.2).
+members (`x10`), chunk (`c5`), width (`512`), observation noise (`on05`), kind (`gru`), the
+recording (`dart2`: DART noise 0.2), or add the demos' mirror images (`mirror`, `--mirror`).
 `--seed` picks the training seed (0 by default; others are stored under their own names). One
 JSON file per run (a run already done is skipped), and a line per run as it finishes.
 """
@@ -27,7 +27,8 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import learning_curves as lc  # noqa: E402
 
 PUSH_AUTO = lc.MEASURED_VARIANTS["mlp-chunk-x5-offsets"]
-"""What `--policy auto` trains on Push, where the `-off` variants start."""
+"""What `--policy auto` trained on Push before it took the demos' mirror images too (and 10000 steps),
+where the `-off` variants start."""
 VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
     "dart-5k": ("dart", 5000, {}, {}),
     "dart-10k": ("dart", 10000, {}, {}),
@@ -51,6 +52,8 @@ VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
     "dart-10k-x5-off": ("dart", 10000, PUSH_AUTO, {}),
     "dart-20k-x5-off": ("dart", 20000, PUSH_AUTO, {}),
     "dart-5k-x5-off-on05": ("dart", 5000, PUSH_AUTO, {"obs_noise": 0.05}),
+    "dart-5k-x5-off-mirror": ("dart", 5000, PUSH_AUTO, {"mirror": True}),
+    "dart-10k-x5-off-mirror": ("dart", 10000, PUSH_AUTO, {"mirror": True}),
 }
 """variant: (recording, gradient steps, policy settings, training settings)."""
 
