@@ -81,6 +81,11 @@ def test_minari_dataset_holds_the_demos_bit_for_bit(dataset: pathlib.Path, minar
         success = episode.infos["is_success"]
         assert success.shape == (t + 1,) and success[0] == 0.0  # the reset's, then each step's
         np.testing.assert_array_equal(success[1:], a["is_success"])
+        # DART demos: each step's info says what the expert meant, the clean action to learn.
+        expert = episode.infos["expert_action"]
+        assert expert.shape == (t + 1, 4) and np.isnan(expert[0]).all()
+        np.testing.assert_array_equal(expert[1:], a["expert_actions"])
+        assert not np.array_equal(expert[1:], a["actions"])
     assert loaded.storage.metadata["algorithm_name"] == "expert"
     assert loaded.storage.metadata["jpeg_encoding"] is False
 
@@ -219,6 +224,7 @@ def test_npz_export_writes_what_the_collector_writes(dataset: pathlib.Path, tmp_
                     assert m[key].dtype == s[key].dtype, key
                     np.testing.assert_array_equal(m[key], s[key], err_msg=key)
             np.testing.assert_array_equal(m["action"], a["actions"])
+            np.testing.assert_array_equal(m["expert_action"], a["expert_actions"])  # what to learn (DART)
             np.testing.assert_array_equal(m["obs__observation"][:-1], a["obs/observation"])
             np.testing.assert_array_equal(m["obs__observation"][-1], a["next_obs/observation"][-1])
             np.testing.assert_array_equal(m["states"], a["states"])
@@ -309,3 +315,14 @@ def test_a_failed_export_leaves_the_previous_dataset_as_it_was(dataset: pathlib.
             export_minari(dataset, dataset_id, demos="all", force=True)
     assert sorted(p.relative_to(minari_root) for p in minari_root.rglob("*")) == before
     assert minari.load_dataset("fetch/drawer-open/expert-v0").total_episodes == 3
+
+
+def test_a_demo_without_expert_labels_exports_its_applied_actions_as_meant(dataset: pathlib.Path,
+                                                                            tmp_path: pathlib.Path) -> None:
+    # demo_3 was scripted: no DART noise, so what the device meant is what it applied.
+    assert main(["export", str(dataset), "--to", "npz", "--out", str(tmp_path), "--demos", "all"]) == 0
+    a, _ = recorded(dataset)["demo_3"]
+    assert "expert_actions" not in a
+    (last,) = sorted(tmp_path.glob(f"{ENV}_ep0003_*.npz"))
+    with np.load(last) as m:
+        np.testing.assert_array_equal(m["expert_action"], a["actions"])

@@ -84,7 +84,11 @@ def test_frames_are_the_demos_exactly(exported: pathlib.Path, reach_demos: pathl
     assert np.array_equal(column("observation.state").astype(np.float32), want_state)
     goals = np.concatenate([d["obs/desired_goal"] for d in demos]).astype(np.float32)
     assert np.array_equal(column("observation.environment_state").astype(np.float32), goals)
-    assert np.array_equal(column("action").astype(np.float32), np.concatenate([d["actions"] for d in demos]))
+    # DART demos: `action` is what a policy imitates, the expert's clean action; the one applied beside it.
+    assert all("expert_actions" in d for d in demos)
+    assert np.array_equal(column("action").astype(np.float32), np.concatenate([d["expert_actions"] for d in demos]))
+    assert np.array_equal(column("executed_action").astype(np.float32), np.concatenate([d["actions"] for d in demos]))
+    assert not np.array_equal(column("action"), column("executed_action"))
     assert np.array_equal(column("next.reward"), np.concatenate([d["rewards"] for d in demos]))
     assert np.array_equal(column("next.done"), np.concatenate([d["dones"] for d in demos]).astype(bool))
     assert np.array_equal(column("next.success"), np.concatenate([d["is_success"] for d in demos]).astype(bool))
@@ -116,14 +120,14 @@ def test_episodes_say_where_their_rows_and_frames_are(exported: pathlib.Path, re
 def test_stats_are_those_of_the_frames(exported: pathlib.Path, reach_demos: pathlib.Path) -> None:
     demos = demo_arrays(reach_demos)
     stats = json.loads((exported / "meta/stats.json").read_text())
-    actions = np.concatenate([d["actions"] for d in demos]).astype(np.float64)
+    actions = np.concatenate([d["expert_actions"] for d in demos]).astype(np.float64)
     assert np.allclose(stats["action"]["mean"], actions.mean(0), rtol=0, atol=1e-12)
     assert np.allclose(stats["action"]["std"], actions.std(0), rtol=0, atol=1e-12)
     assert np.allclose(stats["action"]["q50"], np.quantile(actions, 0.5, axis=0), rtol=0, atol=1e-12)
     assert stats["action"]["count"] == [len(actions)]
     image = stats["observation.images.front"]
     assert np.shape(image["mean"]) == (3, 1, 1) and 0 < np.min(image["mean"]) < np.max(image["max"]) <= 1
-    assert set(stats) >= {"observation.state", "next.reward", "timestamp", "index"}
+    assert set(stats) >= {"observation.state", "executed_action", "next.reward", "timestamp", "index"}
 
 
 def psnr(a: np.ndarray, b: np.ndarray) -> float:

@@ -19,6 +19,7 @@ from lerobot.datasets.lerobot_dataset import LeRobotDataset  # noqa: E402
 from fetch.dataset import lerobot, open_dataset  # noqa: E402
 from fetch.dataset.export import export_lerobot  # noqa: E402
 from fetch.dataset.frames import StateRenderer  # noqa: E402
+from fetch.dataset.schema import meant_actions  # noqa: E402
 
 SIZE = 64
 CAMERAS = ["front", "wrist"]
@@ -60,7 +61,9 @@ def check_dataset(dataset: LeRobotDataset, demos: dict[str, object]) -> None:
                 assert np.array_equal(item["observation.state"].numpy(), a["obs/observation"][t].astype(np.float32))
                 assert np.array_equal(item["observation.environment_state"].numpy(),
                                       a["obs/desired_goal"][t].astype(np.float32))
-                assert np.array_equal(item["action"].numpy(), a["actions"][t])
+                # What a policy imitates is the expert's clean action (DART); the applied one beside it.
+                assert np.array_equal(item["action"].numpy(), meant_actions(a)[t])
+                assert np.array_equal(item["executed_action"].numpy(), a["actions"][t])
                 assert item["next.reward"].item() == a["rewards"][t]
                 assert item["next.done"].item() == bool(a["dones"][t])
                 assert item["next.success"].item() == bool(a["is_success"][t])
@@ -100,7 +103,7 @@ def test_many_files_and_action_chunks(reach_demos: pathlib.Path, tmp_path: pathl
     last = len(arrays[0]["actions"]) - 1
     item = chunked[last - 1]  # the second-to-last step of episode 0: one step of the chunk is past its end
     assert item["action_is_pad"].tolist() == [False, False, True]
-    assert np.array_equal(item["action"][:2].numpy(), arrays[0]["actions"][last - 1:last + 1])
+    assert np.array_equal(item["action"][:2].numpy(), meant_actions(arrays[0])[last - 1:last + 1])
 
 
 def test_default_out_is_where_lerobot_looks() -> None:

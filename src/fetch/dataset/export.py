@@ -103,7 +103,9 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
     """Write the selected demos as the local Minari dataset `dataset_id` (under `minari_root()`).
 
     Each episode holds T+1 observations for T actions (`obs` then the last `next_obs`), its reset
-    seed, and `infos["is_success"]` (T+1 rows: the reset's, then each step's). Its last step is
+    seed, and `infos["is_success"]` and `infos["expert_action"]` (T+1 rows: the reset's, then each
+    step's; a step's expert action is what the device meant where it applied `actions[t]`, the
+    expert's clean action under DART noise: what to learn; the reset's row is NaN). Its last step is
     marked truncated unless the env terminated it, as Minari's own collector does. The env spec
     re-creates the env the demos were recorded in; the eval env spec is that env with the task's
     registered step limit. Recorded camera images are in the observations but not in a recovered
@@ -214,9 +216,11 @@ def _episode(arrays: dict[str, np.ndarray], attrs: dict[str, Any], env: Any) -> 
     terminations = arrays["terminated"].astype(bool)
     truncations = arrays["truncated"].astype(bool)
     truncations[-1] |= not terminations[-1]
+    meant = schema.meant_actions(arrays)
+    expert_action = np.concatenate([np.full((1, meant.shape[1]), np.nan, np.float32), meant])
     return {"seed": int(attrs["seed"]), "observations": observations, "actions": arrays["actions"],
             "rewards": arrays["rewards"], "terminations": terminations, "truncations": truncations,
-            "infos": {"is_success": is_success}}
+            "infos": {"is_success": is_success, "expert_action": expert_action}}
 
 
 def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *, demos: str = "successful",

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from fetch.dataset import schema
 from fetch.errors import FetchError
 
 CODEBASE_VERSION = "v3.0"
@@ -103,6 +104,7 @@ def features(obs_layout: dict[str, slice], cameras: Sequence[str], image_size: i
         "observation.state": vector(state_names(obs_layout)),
         "observation.environment_state": vector(["goal_x", "goal_y", "goal_z"]),
         "action": vector(ACTION_NAMES),
+        "executed_action": vector(ACTION_NAMES),
         "next.reward": scalar("float32"),
         "next.done": scalar("bool"),
         "next.success": scalar("bool"),
@@ -123,7 +125,10 @@ def frame_columns(arrays: dict[str, np.ndarray], episode: int, first_index: int,
     return {
         "observation.state": arrays["obs/observation"].astype(np.float32),
         "observation.environment_state": arrays["obs/desired_goal"].astype(np.float32),
-        "action": arrays["actions"].astype(np.float32),
+        # What a policy imitates: what the device meant (the expert's clean action under DART
+        # noise); the action the arm was given, which replays the demo, beside it.
+        "action": schema.meant_actions(arrays),
+        "executed_action": arrays["actions"].astype(np.float32),
         "next.reward": arrays["rewards"].astype(np.float32),
         "next.done": arrays["dones"].astype(bool),
         "next.success": arrays["is_success"].astype(bool),

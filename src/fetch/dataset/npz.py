@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from fetch.dataset import schema
 from fetch.dataset.background import BackgroundWriter
 from fetch.dataset.durable import atomic_write
 from fetch.dataset.episode import Demo
@@ -45,13 +46,16 @@ def seed_file(demo: Demo, metadata: dict[str, Any]) -> bytes:
 
 def seed_arrays(demo: Demo, metadata: dict[str, Any]) -> dict[str, Any]:
     """The seed's npz keys: `action`, `reward`, `terminated`, `truncated`, `obs__<key>` (T+1 rows,
-    the reset's observation first), `metadata_json`, `info_json`; plus `states` (T+1 rows)."""
+    the reset's observation first), `metadata_json`, `info_json`; plus `states` (T+1 rows) and
+    `expert_action`: what the device meant at each step, the expert's clean action where `action` is
+    its DART-perturbed one (what to learn; `action` replays)."""
     a = demo.arrays
     packed: dict[str, Any] = {
         "metadata_json": json.dumps(metadata, ensure_ascii=False),
         # The seed stored the reset's info first, then one per step; the reset's is not recorded.
         "info_json": json.dumps([{}] + [{"is_success": float(s)} for s in a["is_success"]]),
         "action": a["actions"],
+        "expert_action": schema.meant_actions(a),
         "reward": a["rewards"].astype(np.float32),
         "terminated": a["terminated"],
         "truncated": a["truncated"],
@@ -145,6 +149,9 @@ def problems(demo: NpzDemo) -> list[str]:
         out.append(f"{demo.path.name}: action has shape {a['action'].shape}, expected (T, 4)")
     elif not np.isfinite(a["action"]).all():
         out.append(f"{demo.path.name}: action holds NaN or infinite values")
+    if "expert_action" in a and a["expert_action"].shape != a["action"].shape:
+        out.append(f"{demo.path.name}: expert_action has shape {a['expert_action'].shape}, expected action's "
+                   f"{a['action'].shape}")
     for key, value in a.items():
         if (key.startswith("obs__") or key == "states") and len(value) != t + 1:
             out.append(f"{demo.path.name}: {key} has {len(value)} rows, expected T+1 = {t + 1}")

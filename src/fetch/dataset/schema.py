@@ -87,6 +87,12 @@ OPTIONAL_FIELDS: tuple[Field, ...] = (
 """Arrays some demos hold; checked like the others when present."""
 
 
+def meant_actions(arrays: Mapping[str, Any]) -> np.ndarray:
+    """A demo's (T, 4) actions to learn from: `expert_actions` where recorded, else `actions` (the
+    device meant what it sent). Every export carries them beside the applied `actions`."""
+    return np.asarray(arrays["expert_actions"] if "expert_actions" in arrays else arrays["actions"], np.float32)
+
+
 def image_key(camera: str) -> str:
     return f"{camera}_image"
 

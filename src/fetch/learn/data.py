@@ -117,6 +117,7 @@ def with_reflections(demos: Demos) -> Demos:
 
 def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
     from fetch.dataset.reader import Dataset
+    from fetch.dataset.schema import meant_actions
 
     assert isinstance(ds, Dataset)
     out = []
@@ -127,8 +128,7 @@ def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
         arrays = ds.arrays(name)
         obs = flat_obs({k: arrays[f"obs/{k}"] for k in OBS_KEYS})
         # A demo recorded under DART noise learns the expert's clean action, not the perturbed one it executed.
-        actions = arrays["expert_actions"] if "expert_actions" in arrays else arrays["actions"]
-        out.append(Episode(name, int(attrs["seed"]), obs, np.asarray(actions, np.float32),
+        out.append(Episode(name, int(attrs["seed"]), obs, meant_actions(arrays),
                            np.asarray(arrays["obs/achieved_goal"], np.float32)))
     return tuple(out)
 
