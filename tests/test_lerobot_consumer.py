@@ -84,6 +84,12 @@ def test_lerobot_loads_the_export(reach_demos: pathlib.Path, tmp_path: pathlib.P
     assert list(dataset.meta.tasks.index) == ["move the gripper to the goal"]
     assert set(dataset.meta.video_keys) == {f"observation.images.{c}" for c in CAMERAS}
     assert dataset.meta.stats["action"]["mean"].shape == (4,)
+    # A LeRobot policy learns `action` alone: the applied `executed_action` is not taken for another one.
+    from lerobot.configs.types import FeatureType
+    from lerobot.datasets.utils import dataset_to_policy_features
+
+    policy_features = dataset_to_policy_features(dataset.meta.features)
+    assert [k for k, f in policy_features.items() if f.type is FeatureType.ACTION] == ["action"]
     assert dataset.meta.stats["observation.images.front"]["mean"].shape == (3, 1, 1)
 
 
