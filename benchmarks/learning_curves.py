@@ -60,6 +60,7 @@ MEASURED_VARIANTS: dict[str, dict[str, Any]] = {
     "mlp-chunk-x5-offsets": {"kind": "mlp-chunk", "members": 5, "goal_offsets": True},
     "gru-offsets": {"kind": "gru", "goal_offsets": True},
     "mlp-chunk-x5-offsets-mirror": {"kind": "mlp-chunk", "members": 5, "goal_offsets": True, "mirror": True},
+    "gru-mirror": {"kind": "gru", "mirror": True},
 }
 """What `--policy auto` trains where it adds settings to a kind (fetch.learn.MEASURED_SETTINGS): an
 ensemble, goal offsets; `mirror` is the training setting (fetch.learn.MEASURED_MIRROR: the demos'
@@ -208,8 +209,8 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
     sections = (("## 100 expert demos, every task, with the defaults (the bar: >= 80 % on all but Slide)",
                  "Recorded as `gym-fetch collect --device expert` now does (DART noise 0.1, to the horizon; the "
                  "policy learns `expert_actions`), trained with `gym-fetch train`'s default policy (`auto`: gru, "
-                 "but mlp-chunk on Drawer-close, and on Push an ensemble of 5 mlp-chunks with goal offsets that also "
-                 "learns from the demos' mirror images), "
+                 "but mlp-chunk on Drawer-close, and on Push an ensemble of 5 mlp-chunks with goal offsets; on Push "
+                 "and PickPlace it also learns from the demos' mirror images), "
                  "whose choice is in the last table here.",
                  "dart", None),
                 ("## 100 expert demos, every task, as first measured",

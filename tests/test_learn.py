@@ -406,6 +406,10 @@ def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib
     from fetch.tasks import ENV_IDS
 
     assert set(MEASURED_POLICY) | set(MEASURED_SETTINGS) <= set(ENV_IDS), "every exception names a registered task"
+    from fetch.learn import MEASURED_MIRROR
+    from fetch.tasks import task_class
+
+    assert MEASURED_MIRROR and all(task_class(t).mirrors for t in MEASURED_MIRROR), "auto mirrors symmetric tasks only"
     assert policy_for("Drawer-close-v2") == "mlp-chunk" and policy_for("Reach-v2") == "gru"
     assert auto_settings("Push-v2") == {"kind": "mlp-chunk", "members": 5, "goal_offsets": True}
     assert auto_settings("Reach-v2") == {"kind": "gru"}

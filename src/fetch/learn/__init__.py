@@ -27,10 +27,11 @@ seeds each, 500 evaluation episodes): on Push an ensemble of 5 networks (78.6 % 
 71.2 %) that also sees the goal's offsets (`--goal-offsets`: 79.9 %)."""
 
 
-MEASURED_MIRROR: frozenset[str] = frozenset({"Push-v2"})
+MEASURED_MIRROR: frozenset[str] = frozenset({"Push-v2", "PickPlace-v2"})
 """Tasks on which `--policy auto` also learns from each demo's mirror image (`--mirror`), by
-measurement (docs/learning_curves.md, 3 training seeds, 1000 evaluation episodes): on Push the
-ensemble with goal offsets went from 82.0 to 86.7 % (with 10000 steps: twice the demos)."""
+measurement (docs/learning_curves.md, 3 training seeds each): on Push the ensemble with goal offsets
+went from 82.0 to 86.7 % (1000 evaluation episodes; with 10000 steps: twice the demos); on
+PickPlace gru from 14.9 to 35.5 % with 10 demos and from 75.9 to 85.4 % with 30 (500 episodes)."""
 
 
 DEFAULT_STEPS = 5000
