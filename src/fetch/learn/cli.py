@@ -35,7 +35,8 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                    help="auto (default): the policy measured best on the dataset's task, gru but for "
                         f"{', '.join(sorted(MEASURED_POLICY))} (mlp-chunk), an ensemble of 5 on "
                         f"{_auto_tasks('members')}, "
-                        "goal offsets where --goal-offsets says (docs/learning_curves.md); gru: a "
+                        "goal offsets and mirror images where --goal-offsets and --mirror say "
+                        "(docs/learning_curves.md); gru: a "
                         "recurrent policy (BC-RNN); mlp-chunk: an MLP predicting chunks of actions with ACT's "
                         "temporal ensembling, ~7x faster to train")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial weights and the batches (default 0)")
