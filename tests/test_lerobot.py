@@ -235,7 +235,7 @@ def test_a_killed_export_leaves_nothing_or_the_old_dataset(exported: pathlib.Pat
     proc = _start_export(reach_demos, target, "--force", "--cameras", "front")
     _wait_for(partial, proc)
     proc.send_signal(signal.SIGINT)
-    assert proc.wait(timeout=120) == 130
+    assert proc.wait(timeout=120) == 130, proc.stderr.read().decode() if proc.stderr else ""
     assert files() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
     # SIGKILL over it: the same

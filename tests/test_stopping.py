@@ -10,6 +10,7 @@ import sys
 import pytest
 
 from fetch.dataset import open_dataset, validate
+from fetch.errors import DatasetError
 
 SCRIPTS = pathlib.Path(__file__).parent / "scripts"
 
@@ -102,3 +103,22 @@ def test_seeds_out_of_range_are_refused_before_anything_is_written(tmp_path: pat
     assert run.returncode == 2, run.stderr
     assert "--seed" in run.stderr and "Traceback" not in run.stderr
     assert not out.exists()
+
+
+@pytest.mark.parametrize("then", [BrokenPipeError, lambda: DatasetError("a render worker died")])
+def test_an_error_while_winding_down_after_a_stop_still_exits_as_the_stop(then, capsys) -> None:  # noqa: ANN001
+    """A Ctrl-C during an export's rendering can break a pipe to a worker (or kill one) while the
+    work is wound down; the exit status is the stop's, 130, not a pipe's 1 or an error's 2."""
+    import argparse
+
+    from fetch.cli import _run
+
+    def run(_: argparse.Namespace) -> int:
+        try:
+            raise KeyboardInterrupt
+        finally:
+            raise then()
+
+    assert _run(argparse.Namespace(run=run, command="export")) == 130
+    err = capsys.readouterr().err
+    assert err == "" or err.startswith("gym-fetch export: error: a render worker died")

@@ -350,12 +350,30 @@ def _run(args: argparse.Namespace, prog: str | None = None) -> int:
         return int(args.run(args))
     except FetchError as e:
         print(f"{prog or 'gym-fetch ' + args.command}: error: {e}", file=sys.stderr)
-        return 2
+        stop = _stop_behind(e)
+        return 2 if stop is None else _stopped(stop)
     except KeyboardInterrupt as e:
         return _stopped(e)
-    except BrokenPipeError:
+    except BrokenPipeError as e:
+        # A stop signal can break a pipe to a worker while the work is being wound down: that is
+        # still the stop. Otherwise our stdout's reader went away (`| head`).
+        stop = _stop_behind(e)
+        if stop is not None:
+            return _stopped(stop)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+
+
+def _stop_behind(e: BaseException) -> KeyboardInterrupt | None:
+    """The stop signal (KeyboardInterrupt) that `e` was raised while handling, if any."""
+    seen: set[int] = set()
+    context = e.__context__
+    while context is not None and id(context) not in seen:
+        if isinstance(context, KeyboardInterrupt):
+            return context
+        seen.add(id(context))
+        context = context.__context__
+    return None
 
 
 if __name__ == "__main__":
