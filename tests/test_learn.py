@@ -40,8 +40,12 @@ def _train(dataset: pathlib.Path, out: pathlib.Path, *extra: str) -> int:
     return main(["train", str(dataset), "--out", str(out), *TINY, *extra])
 
 
+def _checkpoint(torch, run: pathlib.Path) -> dict:  # noqa: ANN001
+    return torch.load(run / "checkpoint.pt", weights_only=True)
+
+
 def _weights(torch, run: pathlib.Path) -> dict:  # noqa: ANN001
-    return torch.load(run / "checkpoint.pt", weights_only=True)["model"]
+    return _checkpoint(torch, run)["model"]
 
 
 def _same(a: dict, b: dict) -> bool:
@@ -426,10 +430,6 @@ def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib
     one = load(tmp_path / "push-one").config  # flags override auto
     assert one.members == 1 and not one.goal_offsets
     assert not _checkpoint(torch, tmp_path / "push-one")["train"]["mirror"]
-
-
-def _checkpoint(torch, run: pathlib.Path) -> dict:  # noqa: ANN001
-    return torch.load(run / "checkpoint.pt", weights_only=True)
 
 
 def test_mirror_learns_from_each_demo_and_its_mirror_image(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001

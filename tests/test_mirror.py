@@ -15,9 +15,9 @@ from fetch.cli import main
 from fetch.errors import FetchError
 from fetch.experts import make_expert
 from fetch.learn.data import load_demos, with_reflections
-from fetch.tasks import REGISTRATIONS
+from fetch.tasks import mirroring_ids
 
-MIRRORED = [r.env_id for r in REGISTRATIONS if r.task.mirrors]
+MIRRORED = list(mirroring_ids())
 
 
 def _reflected_quat(q: np.ndarray) -> np.ndarray:

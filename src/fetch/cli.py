@@ -365,15 +365,12 @@ def _run(args: argparse.Namespace, prog: str | None = None) -> int:
 
 
 def _stop_behind(e: BaseException) -> KeyboardInterrupt | None:
-    """The stop signal (KeyboardInterrupt) that `e` was raised while handling, if any."""
-    seen: set[int] = set()
+    """The stop signal (KeyboardInterrupt) that `e` was raised while handling, if any. (Python
+    breaks any cycle when it sets `__context__`, so the chain ends.)"""
     context = e.__context__
-    while context is not None and id(context) not in seen:
-        if isinstance(context, KeyboardInterrupt):
-            return context
-        seen.add(id(context))
+    while context is not None and not isinstance(context, KeyboardInterrupt):
         context = context.__context__
-    return None
+    return context
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ from fetch import observation as ob
 from fetch import rendering
 from fetch.errors import FetchError, UnknownNameError
 from fetch.robot import ACTION_STEP, GRIPPER_QUAT, Robot, build_spec, firm_furniture
-from fetch.tasks import REGISTRATIONS, task_class
+from fetch.tasks import mirroring_ids, task_class
 from fetch.tasks.base import FINGER_PAIRS, Start, Task, goal_distance, mocap_index
 from fetch.timing import CONTROL_DT, N_SUBSTEPS
 
@@ -331,7 +331,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if not self.task.mirrors:
             raise FetchError(f"{self.spec.id if self.spec else self.task.name} is not symmetric about the plane "
                              f"through its start (its scene or its start is not); tasks that are: "
-                             f"{', '.join(r.env_id for r in REGISTRATIONS if r.task.mirrors)}")
+                             f"{', '.join(mirroring_ids())}")
         plane = float(self._start.grip[1])
         parts = self.task.parts
         goal = next(p for p in parts if p.name == self.task.achieved)

@@ -18,7 +18,7 @@ from fetch.learn import (
     default_steps,
     require_torch,
 )
-from fetch.tasks import REGISTRATIONS
+from fetch.tasks import mirroring_ids
 
 
 def _auto_tasks(setting: str) -> str:
@@ -63,7 +63,7 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                         f"{_auto_tasks('goal_offsets')})")
     p.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
                    help="also learn from each demo's mirror image in the vertical plane through the start "
-                        f"(tasks symmetric about it: {', '.join(r.env_id for r in REGISTRATIONS if r.task.mirrors)}; "
+                        f"(tasks symmetric about it: {', '.join(mirroring_ids())}; "
                         f"default off; --policy auto: on for {', '.join(sorted(MEASURED_MIRROR))})")
     p.add_argument("--obs-noise", type=float, default=0.0,
                    help="std of noise on the normalised observations while training (default 0)")

@@ -36,6 +36,11 @@ _BY_NAME: dict[str, type[Task]] = {r.task.name: r.task for r in REGISTRATIONS}
 _BY_ID: dict[str, type[Task]] = {r.env_id: r.task for r in REGISTRATIONS}
 
 
+def mirroring_ids() -> tuple[str, ...]:
+    """The ids whose task is symmetric about the plane through its start (`Task.mirrors`)."""
+    return tuple(r.env_id for r in REGISTRATIONS if r.task.mirrors)
+
+
 def task_names() -> tuple[str, ...]:
     return tuple(_BY_NAME)
 
