@@ -81,7 +81,9 @@ class PickAndPlace(Expert):
             return np.append(self.move(grip, target), -1.0)
         if self.stage is Stage.CARRY:
             target = place.copy()
-            target[2] = max(target[2], g.carry_z)
+            # Carried, not dragged: stay at the lift height until above the goal (a block pushed
+            # along the table slips out of fingers that press on it; LOWER sets it down).
+            target[2] = max(target[2], g.carry_z, self.lift_z)
             if np.linalg.norm((place - grip)[:2]) < 0.01:
                 self.advance(Stage.LOWER)
             return np.append(self.move(grip, target), -1.0)

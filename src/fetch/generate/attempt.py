@@ -134,6 +134,12 @@ class Generator:
         weights = np.clip(1.0 - np.arange(1, n_pre + segment.length + 1) / span, 0.0, 1.0) if span else \
             np.zeros(n_pre + segment.length)
         path = np.concatenate([np.repeat(start[None], n_pre, axis=0), moved]) + weights[:, None] * offset
+        # Blending out a height offset can dip the path below both its ends (a segment from a goal in
+        # the air carried over to one on the table): the hand would press on what is below it and the
+        # labels would say so. Up to the closest approach it stays at or above the lower end.
+        arrive = n_pre + segment.closest
+        floor = min(held[2], path[arrive, 2])
+        path[:arrive, 2] = np.maximum(path[:arrive, 2], floor)
         grips = np.concatenate([np.full(n_pre, segment.grips[0]), segment.grips])
         openings = None if segment.openings is None else \
             np.concatenate([np.full(n_pre, segment.openings[0]), segment.openings])
