@@ -137,11 +137,18 @@ class ExpertOnPad:
     this way took the whole path a person's does (SDL, dead zone, binary gripper, precision mode).
 
     Small motions are made as a person makes them, with RB held (precision) and the stick pushed
-    further; the gripper is toggled with X when the expert wants it the other way. `noise` adds
+    further; the gripper is toggled with X when the expert clearly wants it the other way. `noise` adds
     Gaussian noise to the stick and triggers (a shaky hand). Use it as a collection `Device`.
     """
 
     name = "gamepad"
+    CLOSE_AT = -0.5
+    """X closes the fingers when the expert squeezes (its a[3] is -1 to grasp and hold)..."""
+    OPEN_ABOVE = 0.005
+    """...and opens them when it wants them 5 mm wider than they are (its finger servo's a[3] is
+    that opening in metres). Between the two, as a person does, it leaves the gripper alone: it
+    toggled at every sign change of the servo before, a dozen presses a second while the expert
+    held the fingers half open over a bin, and generation carried those closings into the labels."""
 
     def __init__(self, pad: VirtualPad, device: object, expert: object, noise: float = 0.0,
                  seed: int = 0) -> None:
@@ -173,7 +180,8 @@ class ExpertOnPad:
         x, y, z = np.clip(move / scale, -1.0, 1.0) if fine else move
         self.pad.set_stick(float(x), float(-y))  # SDL's stick y points down
         self.pad.set_triggers(max(0.0, -float(z)), max(0.0, float(z)))
-        if (action[3] < 0) != self.device.mapper.gripper_closed and not released & {"x"}:  # type: ignore[attr-defined]
+        closed = self.device.mapper.gripper_closed  # type: ignore[attr-defined]
+        if (action[3] > self.OPEN_ABOVE if closed else action[3] <= self.CLOSE_AT) and not released & {"x"}:
             self.pad.press("x")  # a toggle; pressed again only after a tick released
             self._pressed.add("x")
         return self.device.poll(obs)  # type: ignore[attr-defined]
