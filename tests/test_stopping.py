@@ -122,3 +122,40 @@ def test_an_error_while_winding_down_after_a_stop_still_exits_as_the_stop(then, 
     assert _run(argparse.Namespace(run=run, command="export")) == 130
     err = capsys.readouterr().err
     assert err == "" or err.startswith("gym-fetch export: error: a render worker died")
+
+
+SWALLOWED_STOP = """
+import os, pathlib, signal, sys, weakref
+from fetch.dataset.dirs import replacing_dir
+from fetch.teleop.stopping import Stopped, stop_on_signals
+
+target = pathlib.Path(sys.argv[1])
+
+class Thing:
+    pass
+
+with stop_on_signals():
+    try:
+        with replacing_dir(target, force=True) as building:
+            (building / "new").write_text("new")
+            thing = Thing()
+            # Ctrl-C lands while a weakref callback runs: Python prints the handler's exception as
+            # "Exception ignored in ..." and carries on, as it did in a LeRobot export in CI.
+            ref = weakref.ref(thing, lambda _: os.kill(os.getpid(), signal.SIGINT))
+            del thing
+            (building / "more").write_text("the work went on")
+    except Stopped as e:
+        print("stopped", e.signum)
+"""
+
+
+def test_a_stop_whose_exception_python_swallowed_still_keeps_the_old_directory(tmp_path: pathlib.Path) -> None:
+    target = tmp_path / "ds"
+    target.mkdir()
+    (target / "old").write_text("old")
+    proc = subprocess.run([sys.executable, "-c", SWALLOWED_STOP, str(target)], capture_output=True, text=True,
+                          timeout=60)
+    assert "Exception ignored in" in proc.stderr  # the swallowing happened
+    assert proc.stdout.strip() == f"stopped {int(signal.SIGINT)}", proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
+    assert [p.name for p in target.iterdir()] == ["old"]

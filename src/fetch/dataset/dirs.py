@@ -8,6 +8,7 @@ import shutil
 from collections.abc import Iterator
 
 from fetch.errors import DatasetError
+from fetch.teleop.stopping import raise_if_stopped
 
 
 @contextlib.contextmanager
@@ -34,6 +35,9 @@ def replacing_dir(target: pathlib.Path, force: bool, what: str = "--out") -> Ite
         raise DatasetError(f"cannot create {building}: {e}") from e
     try:
         yield building
+        # A Ctrl-C or SIGTERM whose exception Python swallowed (raised while a weakref callback or
+        # __del__ ran: "Exception ignored in ...") still stops the run here, before anything is replaced.
+        raise_if_stopped()
         shutil.rmtree(aside, ignore_errors=True)
         if target.exists():
             target.rename(aside)

@@ -17,6 +17,7 @@ from fetch.dataset import npz, schema
 from fetch.dataset.episode import Demo
 from fetch.dataset.reader import Dataset, open_dataset, require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError
+from fetch.teleop.stopping import raise_if_stopped
 
 FORMATS = ("minari", "npz", "lerobot")
 SELECTIONS = ("successful", "all")
@@ -145,6 +146,7 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
                 target.rename(aside)
             try:
                 steps = _write_minari(minari, dataset_id, ds, chosen, env, eval_spec, metadata)
+                raise_if_stopped()  # a stop whose exception was swallowed: the old dataset comes back
             except BaseException:
                 shutil.rmtree(target, ignore_errors=True)
                 if aside is not None:
