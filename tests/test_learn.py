@@ -405,14 +405,11 @@ def test_train_takes_the_steps_measured_for_the_task_unless_told(torch, reach: p
 
 
 def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
-    from fetch.learn import MEASURED_POLICY, MEASURED_SETTINGS, auto_settings, policy_for
+    from fetch.learn import MEASURED_MIRROR, MEASURED_POLICY, MEASURED_SETTINGS, auto_settings, policy_for
     from fetch.learn.runtime import load
-    from fetch.tasks import ENV_IDS
+    from fetch.tasks import ENV_IDS, task_class
 
     assert set(MEASURED_POLICY) | set(MEASURED_SETTINGS) <= set(ENV_IDS), "every exception names a registered task"
-    from fetch.learn import MEASURED_MIRROR
-    from fetch.tasks import task_class
-
     assert MEASURED_MIRROR and all(task_class(t).mirrors for t in MEASURED_MIRROR), "auto mirrors symmetric tasks only"
     assert policy_for("Drawer-close-v2") == "mlp-chunk" and policy_for("Reach-v2") == "gru"
     assert auto_settings("Push-v2") == {"kind": "mlp-chunk", "members": 5, "goal_offsets": True}

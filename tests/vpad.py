@@ -142,13 +142,13 @@ class ExpertOnPad:
     """
 
     name = "gamepad"
-    CLOSE_AT = -0.5
-    """X closes the fingers when the expert squeezes (its a[3] is -1 to grasp and hold)..."""
     OPEN_ABOVE = 0.005
-    """...and opens them when it wants them 5 mm wider than they are (its finger servo's a[3] is
-    that opening in metres). Between the two, as a person does, it leaves the gripper alone: it
-    toggled at every sign change of the servo before, a dozen presses a second while the expert
-    held the fingers half open over a bin, and generation carried those closings into the labels."""
+    """X closes the fingers when the expert squeezes (its a[3] at or below generation's `SQUEEZE`:
+    -1 to grasp and hold) and opens them when it wants them this much wider than they are [m] (its
+    finger servo's a[3] is that opening in metres). Between the two, as a person does, it leaves the
+    gripper alone: it toggled at every sign change of the servo before, a dozen presses a second
+    while the expert held the fingers half open over a bin, and generation carried those closings
+    into the labels."""
 
     def __init__(self, pad: VirtualPad, device: object, expert: object, noise: float = 0.0,
                  seed: int = 0) -> None:
@@ -180,8 +180,10 @@ class ExpertOnPad:
         x, y, z = np.clip(move / scale, -1.0, 1.0) if fine else move
         self.pad.set_stick(float(x), float(-y))  # SDL's stick y points down
         self.pad.set_triggers(max(0.0, -float(z)), max(0.0, float(z)))
+        from fetch.generate.attempt import SQUEEZE
+
         closed = self.device.mapper.gripper_closed  # type: ignore[attr-defined]
-        if (action[3] > self.OPEN_ABOVE if closed else action[3] <= self.CLOSE_AT) and not released & {"x"}:
+        if (action[3] > self.OPEN_ABOVE if closed else action[3] <= SQUEEZE) and not released & {"x"}:
             self.pad.press("x")  # a toggle; pressed again only after a tick released
             self._pressed.add("x")
         return self.device.poll(obs)  # type: ignore[attr-defined]
