@@ -8,6 +8,7 @@ import functools
 import hashlib
 import math
 import pathlib
+from collections.abc import Callable
 from typing import Any, NamedTuple, SupportsFloat
 
 import gymnasium as gym
@@ -214,9 +215,19 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         super().reset(seed=seed)
+        return self._begin(lambda: self.task.reset(self.model, self.data, self.np_random, self._start))
+
+    def reset_like(self, place: Callable[[mujoco.MjData], np.ndarray]
+                   ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Begin an episode as `reset` does, with `place(data)` in place of the task's random draw: it
+        puts things where they start (in MjData) and returns the goal [m, world]. An expert's private
+        copy of a task (`fetch.experts.twin`) starts like the episode it observed this way."""
+        return self._begin(lambda: place(self.data))
+
+    def _begin(self, draw: Callable[[], np.ndarray]) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         self._started = True
         mujoco.mj_setState(self.model, self.data, self._start_state, STATE_SPEC)
-        goal = self.task.reset(self.model, self.data, self.np_random, self._start)
+        goal = draw()
         self.data.mocap_pos[self._goal_mocap] = goal
         mujoco.mj_forward(self.model, self.data)
         self.robot.hold()

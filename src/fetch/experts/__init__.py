@@ -50,4 +50,8 @@ def make_expert(env: gym.Env | str) -> Expert:
     unwrapped = env.unwrapped
     if not isinstance(unwrapped, FetchEnv):
         raise FetchError(f"make_expert needs a gym-fetch env or id, got {type(unwrapped).__name__}")
+    if isinstance(unwrapped.task, classic.Slide):
+        from fetch.experts.twin import Twin
+
+        return Slide(unwrapped.observation_layout, twin=Twin(FetchEnv(task=unwrapped.task.name)))
     return EXPERTS[type(unwrapped.task)](unwrapped.observation_layout)
