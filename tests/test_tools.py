@@ -341,3 +341,55 @@ def test_images_a_stopped_session_left_unrendered_are_rendered_by_the_next(made:
     with open_dataset(out) as ds:
         assert validate(ds) == [] and ds.demo_names == ["demo_0", "demo_1", "demo_2", "demo_3"]
     assert_same(everything(made["recorded"]), everything(out), skip=("demo_3", "data"))
+
+
+SWALLOWED_IN_TOOL = """
+import os, signal, sys, weakref
+from fetch import cli
+from fetch.dataset import edit, export, npz, render_obs
+
+class Thing:
+    pass
+
+def swallowed_ctrl_c():
+    # Ctrl-C lands while a weakref callback runs: Python prints the handler's exception as
+    # "Exception ignored in ..." and the tool carries on.
+    thing = Thing()
+    ref = weakref.ref(thing, lambda _: os.kill(os.getpid(), signal.SIGINT))
+    del thing
+
+def first(module, name):
+    inner = getattr(module, name)
+    def wrapped(*args, **kwargs):
+        swallowed_ctrl_c()
+        setattr(module, name, inner)
+        return inner(*args, **kwargs)
+    setattr(module, name, wrapped)
+
+first(edit, "_write_merged"), first(edit, "write_masks"), first(render_obs, "_store"), first(npz, "seed_file")
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("tool", ["merge", "split", "render-obs", "export npz"])
+def test_a_stop_whose_exception_python_swallowed_still_stops_the_tool_and_changes_nothing(
+        made: dict[str, pathlib.Path], tmp_path: pathlib.Path, tool: str) -> None:
+    """A Ctrl-C whose `Stopped` Python swallowed (raised in a weakref callback or `__del__`) still stops an
+    editing or exporting tool with 130 before it replaces anything; it used to finish and exit 0."""
+    import subprocess
+    import sys
+
+    shutil.copytree(made["plain"], tmp_path / "plain")
+    ds, out = tmp_path / "plain", tmp_path / "out"
+    before = {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()}
+    out.mkdir()
+    args = {"merge": ["merge", str(ds), str(made["other"]), "--out", str(out / "merged.hdf5")],
+            "split": ["split", str(ds), "--valid", "0.5"],
+            "render-obs": ["render-obs", str(ds), "--camera", "front", "--size", "16", "--workers", "1"],
+            "export npz": ["export", str(ds), "--to", "npz", "--out", str(out)]}[tool]
+    proc = subprocess.run([sys.executable, "-c", SWALLOWED_IN_TOOL, *args], capture_output=True, text=True,
+                          timeout=300)
+    assert "Exception ignored in" in proc.stderr  # the swallowing happened
+    assert proc.returncode == 130, proc.stderr
+    assert {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()} == before
+    assert not list(out.iterdir())

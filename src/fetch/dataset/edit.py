@@ -23,6 +23,7 @@ from fetch.dataset.durable import editing, replacing, rewritten
 from fetch.dataset.reader import Dataset, open_dataset, require_valid, resolve
 from fetch.dataset.writer import package_versions
 from fetch.errors import DatasetError, FetchError
+from fetch.teleop.stopping import raise_if_stopped
 
 SAME = ("env_id", "env_kwargs", "layout", "model_hash")
 """What datasets must share to be merged: the task, the arrays, and the model the states belong to."""
@@ -103,6 +104,7 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
         total = sum(len(s.demo_names) for s in sources)
         with replacing(target) as tmp, h5py.File(tmp, "w") as f:
             report = _write_merged(f, sources, total, target, hashes[0])
+            raise_if_stopped()  # a stop whose exception Python swallowed: nothing is written
     return report
 
 
@@ -193,4 +195,5 @@ def split(path: str | os.PathLike[str], valid: float, seed: int = 0) -> dict[str
         with rewritten(index) as f:
             write_masks(f, masks)
             f["data"].attrs["split"] = json.dumps({"valid": valid, "seed": seed})
+            raise_if_stopped()  # a stop whose exception Python swallowed: the index stays as it was
     return {k: len(masks[k]) for k in schema.SPLITS}

@@ -261,8 +261,10 @@ def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
             ended = float(demo.attrs["ended"])
             metadata = {**npz.seed_metadata(base, demo, index, ended), "demo": name}
             path = out / f"{npz.file_stem(ds.env_id, index, ended)}.npz"
+            content = npz.seed_file(demo, metadata)
+            raise_if_stopped()  # a stop whose exception Python swallowed stops between files too
             try:
-                atomic_write(path, npz.seed_file(demo, metadata))
+                atomic_write(path, content)
             except OSError as e:
                 raise DatasetError(f"cannot write {path}: {e}") from e
             steps += demo.num_samples

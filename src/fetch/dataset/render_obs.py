@@ -25,6 +25,7 @@ from fetch.dataset import schema
 from fetch.dataset.durable import Rewrites, editing
 from fetch.dataset.reader import open_dataset, require_valid, resolve
 from fetch.errors import DatasetError, FetchError
+from fetch.teleop.stopping import raise_if_stopped
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,6 +96,7 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
                 frames += len(images)
             with rewrites.edit(index) as f:  # last: the layout names the camera once every demo has it
                 f["data"].attrs["layout"] = new_layout
+            raise_if_stopped()  # a stop whose exception Python swallowed: no file changes
         return RenderReport(len(names), frames, time.perf_counter() - start, workers)
 
 
