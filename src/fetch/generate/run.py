@@ -25,6 +25,8 @@ from fetch.generate.sources import Sources, load_sources
 from fetch.generate.workers import Backend, Pool, RayCluster, Serial, Work, default_workers
 
 MAX_SEED = 2**62
+LOW_YIELD = (200, 0.05)
+"""After this many attempts, a success rate below this fraction is worth a word (Slide's strikes: 1.7 %)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -149,6 +151,11 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
                     summary.saved += 1
                     summary.total += 1
                 bar.show(summary, time.perf_counter() - started)
+                if summary.attempts == LOW_YIELD[0]:
+                    note = low_yield(summary, config.demos, limit, time.perf_counter() - started)
+                    if note:
+                        bar.end()
+                        say(note)
                 if summary.total >= config.demos:
                     break
                 if summary.attempts >= limit:
@@ -171,6 +178,24 @@ def _commit(writer: Any, result: Result, previous: int | None) -> None:
         source_segments=json.dumps([[c[1], c[2]] for c in result.choices]),
         generation_attempts=result.number - (-1 if previous is None else previous))
     writer.commit(demo)
+
+
+def low_yield(summary: Summary, wanted: int, limit: int, seconds: float) -> str | None:
+    """What to say when few attempts succeed (`LOW_YIELD`): how long the rest will take at this rate,
+    whether the attempt limit comes first, and why it may be so; None when the rate is fine."""
+    attempts, rate = summary.attempts, summary.success_rate
+    if attempts < LOW_YIELD[0] or rate >= LOW_YIELD[1]:
+        return None
+    left = wanted - summary.total
+    needed = left / rate if rate > 0 else float("inf")
+    if needed > limit - attempts:
+        outlook = (f"at this rate --max-attempts ({limit}) runs out with about "
+                   f"{summary.total + int(rate * (limit - attempts))} of the {wanted} demos")
+    else:
+        outlook = f"at this rate the other {left} demos take ~{needed * seconds / attempts / 60:.0f} min"
+    return (f"only {summary.successes} of {attempts} attempts succeeded ({100 * rate:.1f} %): {outlook}. "
+            "The sources' motions may not carry over to new object and goal poses (Slide's strikes do not: "
+            "docs/generate.md); more source demos, or recording the demos directly, may serve better.")
 
 
 class _Bar:
