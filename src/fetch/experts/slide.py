@@ -228,11 +228,12 @@ class Slide(Expert):
     def choose_first(self, obs: Mapping[str, np.ndarray]) -> None:
         """Play the plan out in the twin; if it falls short, the first strike that ends nearest."""
         assert self.twin is not None
-        if self.twin.play(self.rehearsal(), self.horizon) < self.sure:
+        nearest = self.twin.play(self.rehearsal(), self.horizon)
+        if nearest < self.sure:
             return
         puck, goal = self.part(obs, "object_pos")[:2], np.asarray(obs["desired_goal"])[:2]
         sx, sy = (float(np.sign(d) or 1.0) for d in goal - puck)
-        best, nearest = None, self.twin.play(self.rehearsal(), self.horizon)
+        best = None
         for line in (np.array([sx, 0.0]), np.array([0.0, sy]), np.array([sx, sy]) / np.sqrt(2.0)):
             for distance in FIRST_STRIKES:
                 first = (line, puck + line * distance)
