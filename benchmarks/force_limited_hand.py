@@ -7,9 +7,9 @@ with their reference site on the mocap body (a PD towards the target pose, force
 with the arm's gravity compensated; the action rule is unchanged (the target is put at the hand's pose
 plus 0.05 m * a). Per variant: how far the hand moves in each of 8 full-scale +x steps from the start
 (the weld: 31-32 mm), how far it still goes in the 10 steps after the command stops, how far the hand
-tilts, and the worst contact penetration under `--steps` random full-scale steps (as bench_abuse.py
-makes them), with the lid's contacts as shipped (MuJoCo's defaults) or the room's stiff ones. A trial,
-not a product: the experts are not run.
+tilts, and the worst contact penetration and launch under `--steps` random full-scale steps (as
+bench_abuse.py makes and counts them), with the lid's contacts as shipped (MuJoCo's defaults) or the
+room's stiff ones. A trial, not a product: the experts are not run.
 
     .venv/bin/python benchmarks/force_limited_hand.py --env Box-open-v2 --steps 2000   # ~1 min
 """
@@ -102,11 +102,17 @@ def tracking(hand: Hand) -> tuple[np.ndarray, float, float]:
     return np.diff(xs) * 1000.0, after * 1000.0, tilt
 
 
-def abuse(hand: Hand, steps: int, seed: int = 0) -> tuple[float, str]:
-    """([mm] the worst penetration under random full-scale steps, between what)."""
+def abuse(hand: Hand, steps: int, seed: int = 0) -> tuple[float, str, float]:
+    """([mm] the worst penetration under random full-scale steps, between what, [m/s] the fastest
+    launch: an object faster than the grip site in the step after it touched the robot, as
+    bench_abuse.py counts it)."""
     m, d = hand.model, hand.data
     rng = np.random.default_rng(seed)
-    worst, where, hold, action = 0.0, "", 0, np.zeros(4)
+    free = [j for j in range(m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
+    robot = {b for b in range(m.nbody) if m.body(b).name.startswith("robot0:")}
+    grip_vel = np.zeros(6)
+    worst, where, hold, action, launch = 0.0, "", 0, np.zeros(4), 0.0
+    touched: set[int] = set()
     for step in range(steps):
         if step % 50 == 0:
             hand.reset(int(rng.integers(2**31)))
@@ -120,7 +126,16 @@ def abuse(hand: Hand, steps: int, seed: int = 0) -> tuple[float, str]:
                 worst = -float(d.contact.dist[i])
                 where = " / ".join(m.geom(int(g)).name or m.body(int(m.geom_bodyid[int(g)])).name
                                    for g in (d.contact.geom1[i], d.contact.geom2[i]))
-    return worst * 1000.0, where
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, hand.grip, grip_vel, 0)
+        for j in touched:
+            if step % 50:
+                speed = float(np.linalg.norm(d.qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + 3]))
+                launch = max(launch, speed - float(np.linalg.norm(grip_vel[3:])))
+        bodies = m.geom_bodyid[d.contact.geom1[: d.ncon]].tolist(), m.geom_bodyid[d.contact.geom2[: d.ncon]].tolist()
+        pairs = zip(*bodies, strict=True)
+        touched = {j for a, b in pairs for j in free
+                   if (a == m.jnt_bodyid[j] and b in robot) or (b == m.jnt_bodyid[j] and a in robot)}
+    return worst * 1000.0, where, launch
 
 
 def main() -> None:
@@ -130,15 +145,16 @@ def main() -> None:
     args = parser.parse_args()
     print(f"{args.env}, {args.steps} random full-scale steps; mujoco {mujoco.__version__}\n")
     print("| kp [N/m] | kv [N s/m] | force limit [N] | lid contacts | +x move per step [mm] | after stopping [mm] "
-          "| tilt [deg] | worst penetration [mm] | where |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| tilt [deg] | worst penetration [mm] | where | fastest launch [m/s] |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for kp, kv, force in VARIANTS:
         for stiff in (False, True):
             hand = Hand(args.env, kp, kv, force, stiff)
             moves, after, tilt = tracking(hand)
-            depth, where = abuse(hand, args.steps)
+            depth, where, launch = abuse(hand, args.steps)
             print(f"| {kp} | {kv} | {force} | {'stiff' if stiff else 'default'} | "
-                  f"{' '.join(f'{v:.0f}' for v in moves)} | {after:.0f} | {tilt:.1f} | {depth:.1f} | {where} |",
+                  f"{' '.join(f'{v:.0f}' for v in moves)} | {after:.0f} | {tilt:.1f} | {depth:.1f} | {where} | "
+                  f"{launch:.2f} |",
                   flush=True)
 
 
