@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 
 import gymnasium as gym
 import mujoco
@@ -51,9 +52,15 @@ def soften(env: gym.Env) -> None:
 def abuse(env_id: str, steps: int, seed: int, contacts: str = "model") -> dict[str, object]:
     env = gym.make(env_id, max_episode_steps=10**9)
     u = env.unwrapped
-    m, d = u.model, u.data
     if contacts == "mujoco":
         soften(env)
+    return measure(u.model, u.data, lambda episode_seed: env.reset(seed=episode_seed), env.step, steps, seed)
+
+
+def measure(m: mujoco.MjModel, d: mujoco.MjData, reset: Callable[[int], object],
+            step_with: Callable[[np.ndarray], object], steps: int, seed: int) -> dict[str, object]:
+    """The abuse on any model that `reset(seed)` starts and `step_with(action)` steps (MjData `d`):
+    the worst penetration, object speed and launch, with where and when."""
     free = [j for j in range(m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
     robot = {b for b in range(m.nbody) if m.body(b).name.startswith("robot0:")}
     grip = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "robot0:grip")
@@ -69,12 +76,12 @@ def abuse(env_id: str, steps: int, seed: int, contacts: str = "model") -> dict[s
     for step in range(steps):
         if step % 50 == 0:
             episode_seed = int(rng.integers(2**31))
-            env.reset(seed=episode_seed)
+            reset(episode_seed)
         if hold == 0:
             action = rng.choice([-1.0, 1.0], size=4).astype(np.float32)
             hold = int(rng.integers(1, 6))
         hold -= 1
-        env.step(action)
+        step_with(action)
         if d.ncon:
             i = int(np.argmin(d.contact.dist[: d.ncon]))
             depth = -float(d.contact.dist[i])

@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 import fetch  # noqa: F401  (registers the ids)
+from bench_abuse import measure  # benchmarks/ is the script's directory, so on sys.path
 from fetch.robot import ROOM_SOLIMP, ROOM_SOLREF, _delete
 from fetch.timing import N_SUBSTEPS
 
@@ -77,7 +78,7 @@ class Hand:
         self.quat = d.xquat[self.hand].copy()
 
     def step(self, action: np.ndarray) -> None:
-        d, a = self.data, np.clip(action, -1.0, 1.0)
+        d, a = self.data, np.clip(np.asarray(action, np.float64), -1.0, 1.0)
         d.mocap_pos[self.mocap] = d.xpos[self.hand] + 0.05 * a[:3]
         d.mocap_quat[self.mocap] = self.quat
         for act, adr in self.fingers:
@@ -104,38 +105,9 @@ def tracking(hand: Hand) -> tuple[np.ndarray, float, float]:
 
 def abuse(hand: Hand, steps: int, seed: int = 0) -> tuple[float, str, float]:
     """([mm] the worst penetration under random full-scale steps, between what, [m/s] the fastest
-    launch: an object faster than the grip site in the step after it touched the robot, as
-    bench_abuse.py counts it)."""
-    m, d = hand.model, hand.data
-    rng = np.random.default_rng(seed)
-    free = [j for j in range(m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
-    robot = {b for b in range(m.nbody) if m.body(b).name.startswith("robot0:")}
-    grip_vel = np.zeros(6)
-    worst, where, hold, action, launch = 0.0, "", 0, np.zeros(4), 0.0
-    touched: set[int] = set()
-    for step in range(steps):
-        if step % 50 == 0:
-            hand.reset(int(rng.integers(2**31)))
-        if hold == 0:
-            action, hold = rng.choice([-1.0, 1.0], size=4), int(rng.integers(1, 6))
-        hold -= 1
-        hand.step(action)
-        if d.ncon:
-            i = int(np.argmin(d.contact.dist[: d.ncon]))
-            if -float(d.contact.dist[i]) > worst:
-                worst = -float(d.contact.dist[i])
-                where = " / ".join(m.geom(int(g)).name or m.body(int(m.geom_bodyid[int(g)])).name
-                                   for g in (d.contact.geom1[i], d.contact.geom2[i]))
-        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, hand.grip, grip_vel, 0)
-        for j in touched:
-            if step % 50:
-                speed = float(np.linalg.norm(d.qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + 3]))
-                launch = max(launch, speed - float(np.linalg.norm(grip_vel[3:])))
-        bodies = m.geom_bodyid[d.contact.geom1[: d.ncon]].tolist(), m.geom_bodyid[d.contact.geom2[: d.ncon]].tolist()
-        pairs = zip(*bodies, strict=True)
-        touched = {j for a, b in pairs for j in free
-                   if (a == m.jnt_bodyid[j] and b in robot) or (b == m.jnt_bodyid[j] and a in robot)}
-    return worst * 1000.0, where, launch
+    launch), made and counted by bench_abuse.py's `measure`."""
+    worst = measure(hand.model, hand.data, hand.reset, hand.step, steps, seed)
+    return float(worst["depth"]) * 1000.0, str(worst["depth_where"]), float(worst["launch"])  # type: ignore[arg-type]
 
 
 def main() -> None:
