@@ -51,14 +51,11 @@ class Twin:
     def play(self, policy: Callable[[Observation], np.ndarray], steps: int) -> float:
         """[m] how far from the goal the task's achieved goal is after `steps` steps of `policy` from
         the twin's present state; the twin is put back in that state afterwards."""
-        saved, obs, distance = self.env.get_state(), self.obs, float("inf")
+        saved, obs = self.env.get_state(), self.obs
         for _ in range(steps):
-            obs, _, _, _, info = self.env.step(policy(obs))
-            distance = float(info["distance"])
-        if steps <= 0:
-            distance = float(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]))
+            obs = self.env.step(policy(obs))[0]
         self.env.set_state(saved)
-        return distance
+        return float(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]))
 
 
 def _same(mine: Observation, theirs: Observation) -> bool:
