@@ -6,11 +6,13 @@ from collections.abc import Callable, Mapping
 
 import gymnasium as gym
 
+from fetch.env import FetchEnv
 from fetch.errors import FetchError
 from fetch.experts.base import Expert
 from fetch.experts.motion import Drawer, Push, Reach
 from fetch.experts.pick import Grasp, PickAndPlace
 from fetch.experts.slide import Slide
+from fetch.experts.twin import Twin
 from fetch.tasks import bin as bin_task
 from fetch.tasks import box as box_task
 from fetch.tasks import classic, drawer
@@ -26,7 +28,8 @@ _BOX_CARRY = box_task.SEATED_Z + _HANDLE[2] + 0.04
 EXPERTS: dict[type[Task], Callable[[Mapping[str, slice]], Expert]] = {
     classic.Reach: Reach,
     classic.Push: Push,
-    classic.Slide: Slide,
+    # Slide plans in a private copy of its own task (`experts.twin`), started from the first observation.
+    classic.Slide: lambda layout: Slide(layout, twin=Twin(FetchEnv(task=classic.Slide.name))),
     classic.PickPlace: lambda layout: PickAndPlace(layout, Grasp("object")),
     bin_task.BinPick: lambda layout: PickAndPlace(layout, Grasp("block", opening=0.03, carry_z=_BIN_CARRY)),
     bin_task.BinPlace: lambda layout: PickAndPlace(layout, Grasp("block", opening=0.03, carry_z=_BIN_CARRY,
@@ -43,15 +46,9 @@ EXPERTS: dict[type[Task], Callable[[Mapping[str, slice]], Expert]] = {
 
 def make_expert(env: gym.Env | str) -> Expert:
     """The scripted expert for an env (or a registered id such as "Drawer-open-v2")."""
-    from fetch.env import FetchEnv
-
     if isinstance(env, str):
         env = gym.make(env)
     unwrapped = env.unwrapped
     if not isinstance(unwrapped, FetchEnv):
         raise FetchError(f"make_expert needs a gym-fetch env or id, got {type(unwrapped).__name__}")
-    if isinstance(unwrapped.task, classic.Slide):
-        from fetch.experts.twin import Twin
-
-        return Slide(unwrapped.observation_layout, twin=Twin(FetchEnv(task=unwrapped.task.name)))
     return EXPERTS[type(unwrapped.task)](unwrapped.observation_layout)
