@@ -104,6 +104,19 @@ def test_replay_check_passes_and_catches_a_changed_state(copy: pathlib.Path,
     assert "demo_2" in out and "states[7, 3]" in out and "1 deviating" in out
 
 
+def test_replay_says_when_the_demos_were_recorded_on_another_model(copy: pathlib.Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["replay", str(copy), "--check"]) == 0
+    assert "another model" not in capsys.readouterr().out
+    other = "ab" * 32  # a well-formed hash of some other model (an older release's physics, another MuJoCo)
+    with h5py.File(copy / "demos.hdf5", "r+") as f:  # the index holds the dataset's attributes
+        f["data"].attrs["model_hash"] = other
+    assert main(["replay", str(copy), "--check"]) == 0  # the same physics after all: still exact
+    out = capsys.readouterr().out
+    assert f"recorded on another model than this install's (model hash {other[:12]}, here " in out
+    assert "4 exact, 0 deviating" in out
+
+
 def test_info_validates(copy: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["info", str(copy)]) == 0
     assert "4 (4 successful)" in capsys.readouterr().out

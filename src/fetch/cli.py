@@ -205,7 +205,7 @@ def _check(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
     from fetch.dataset import open_dataset
     from fetch.dataset.npz import check_npz
     from fetch.dataset.reader import require_valid
-    from fetch.dataset.replay import check_demo, make_replay_env
+    from fetch.dataset.replay import check_demo, make_replay_env, other_model
 
     if demos := _npz_demos(args.file, args.demo):
         env = gymnasium.make(str(demos[0].metadata["env_id"])).unwrapped
@@ -216,6 +216,8 @@ def _check(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
         names = ds.select(args.demo)
         require_valid(ds, names, images=False)
         env = make_replay_env(ds)
+        if note := other_model(ds, env):
+            print(note)
         checks = (check_demo(ds, name, env) for name in names)
     failures = 0
     largest: tuple[float, str] = (0.0, "")

@@ -48,6 +48,26 @@ def make_replay_env(ds: Dataset) -> Any:
     return gym.make(ds.env_id, **ds.env_kwargs).unwrapped
 
 
+def other_model(ds: Dataset, env: Any) -> str | None:
+    """Why a replay on `env` (from `make_replay_env`) need not be exact, or None when the dataset was
+    recorded on this model: a line naming the two model hashes and the versions then and now. The
+    physics of a task changes between releases (contacts, masses) and its MJB between MuJoCo
+    versions, and a replay is bit for bit only on the model the demos were recorded on."""
+    import mujoco
+
+    import fetch
+
+    recorded = str(ds.data_attrs.get("model_hash", ""))
+    here = env.model_hash()
+    if recorded in (here, env.legacy_model_hash()):
+        return None
+    then = ", ".join(f"{k} {ds.versions[k]}" for k in ("fetch", "mujoco") if k in ds.versions) or "versions unknown"
+    return (f"note: {ds.path} was recorded on another model than this install's (model hash {recorded[:12]}, "
+            f"here {here[:12]}; recorded with {then}, here fetch {fetch.__version__}, mujoco {mujoco.__version__}): "
+            "a replay is exact only on the model it was recorded on, so a deviation here need not mean a damaged "
+            "demo")
+
+
 def largest_difference(replayed: np.ndarray, recorded: np.ndarray, label: str, row_offset: int = 0) -> Deviation:
     """The largest absolute difference (NaN counts as infinite) and its `label[row, column]`."""
     if replayed.size == 0:
