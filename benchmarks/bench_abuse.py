@@ -17,6 +17,7 @@ chosen contacts; `--cost` times ordinary random steps both ways, alternating in 
 from __future__ import annotations
 
 import argparse
+import itertools
 import time
 from collections.abc import Callable
 
@@ -26,7 +27,11 @@ import numpy as np
 
 import fetch
 from expert_success import evaluate  # benchmarks/ is the script's directory, so on sys.path
+from fetch.experts import make_expert
 from fetch.robot import MUJOCO_SOLIMP, MUJOCO_SOLREF, ROOM_SOLIMP, ROOM_SOLREF
+
+DEPTH_BAR, LAUNCH_BAR = 0.005, 1.0
+"""Issue 20's bars: [m] the deepest contact, [m/s] the fastest launch."""
 
 
 def room_geoms(env: gym.Env) -> list[int]:
@@ -57,18 +62,67 @@ def abuse(env_id: str, steps: int, seed: int, contacts: str = "model") -> dict[s
     return measure(u.model, u.data, lambda episode_seed: env.reset(seed=episode_seed), env.step, steps, seed)
 
 
+class Watch:
+    """The worst penetration, object speed and launch over the steps it is shown, with where and when,
+    and how many steps broke the bars."""
+
+    def __init__(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        self.m, self.d = m, d
+        self.free = [j for j in range(m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
+        self.robot = {b for b in range(m.nbody) if m.body(b).name.startswith("robot0:")}
+        self.grip = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "robot0:grip")
+        self.grip_vel = np.zeros(6)
+        self.depth, self.depth_where, self.speed, self.speed_where = 0.0, "", 0.0, ""
+        self.launch, self.launch_where = 0.0, ""
+        self.deep_steps = self.launch_steps = self.steps = 0
+        self.touched: set[int] = set()  # free bodies touching the robot after the previous step
+
+    def episode(self) -> None:
+        """A new episode starts: nothing touches the robot yet."""
+        self.touched = set()
+
+    def after_step(self, when: str) -> None:
+        """Look at the state a step left; `when` says which step, for the report."""
+        m, d = self.m, self.d
+        self.steps += 1
+        if d.ncon:
+            i = int(np.argmin(d.contact.dist[: d.ncon]))
+            depth = -float(d.contact.dist[i])
+            self.deep_steps += depth > DEPTH_BAR
+            if depth > self.depth:
+                names = [m.geom(g).name or m.body(m.geom_bodyid[g]).name
+                         for g in (int(d.contact.geom1[i]), int(d.contact.geom2[i]))]
+                self.depth, self.depth_where = depth, f"{names[0]} / {names[1]} ({when})"
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, self.grip, self.grip_vel, 0)
+        launched = False
+        for j in self.free:
+            speed = float(np.linalg.norm(d.qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + 3]))
+            where = f"{m.body(m.jnt_bodyid[j]).name} ({when})"
+            if speed > self.speed:
+                self.speed, self.speed_where = speed, where
+            if j in self.touched:
+                launch = speed - float(np.linalg.norm(self.grip_vel[3:]))
+                launched |= launch > LAUNCH_BAR
+                if launch > self.launch:
+                    self.launch, self.launch_where = launch, where
+        self.launch_steps += launched
+        bodies = m.geom_bodyid[d.contact.geom1[: d.ncon]].tolist(), m.geom_bodyid[d.contact.geom2[: d.ncon]].tolist()
+        self.touched = {j for a, b in zip(*bodies, strict=True) for j in self.free
+                        if (a == m.jnt_bodyid[j] and b in self.robot) or (b == m.jnt_bodyid[j] and a in self.robot)}
+
+    def result(self, seconds: float) -> dict[str, object]:
+        return {"depth": self.depth, "depth_where": self.depth_where, "speed": self.speed,
+                "speed_where": self.speed_where, "launch": self.launch, "launch_where": self.launch_where,
+                "deep_steps": self.deep_steps, "launch_steps": self.launch_steps, "steps": self.steps,
+                "steps_per_s": self.steps / seconds}
+
+
 def measure(m: mujoco.MjModel, d: mujoco.MjData, reset: Callable[[int], object],
             step_with: Callable[[np.ndarray], object], steps: int, seed: int) -> dict[str, object]:
     """The abuse on any model that `reset(seed)` starts and `step_with(action)` steps (MjData `d`):
     the worst penetration, object speed and launch, with where and when."""
-    free = [j for j in range(m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
-    robot = {b for b in range(m.nbody) if m.body(b).name.startswith("robot0:")}
-    grip = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "robot0:grip")
-    grip_vel = np.zeros(6)
+    watch = Watch(m, d)
     rng = np.random.default_rng(seed)
-    worst_depth, depth_where, worst_speed, speed_where = 0.0, "", 0.0, ""
-    worst_launch, launch_where = 0.0, ""
-    touched: set[int] = set()  # free bodies touching the robot after the previous step
     action = np.zeros(4, np.float32)
     hold = 0
     start = time.perf_counter()
@@ -77,37 +131,38 @@ def measure(m: mujoco.MjModel, d: mujoco.MjData, reset: Callable[[int], object],
         if step % 50 == 0:
             episode_seed = int(rng.integers(2**31))
             reset(episode_seed)
+            watch.episode()
         if hold == 0:
             action = rng.choice([-1.0, 1.0], size=4).astype(np.float32)
             hold = int(rng.integers(1, 6))
         hold -= 1
         step_with(action)
-        if d.ncon:
-            i = int(np.argmin(d.contact.dist[: d.ncon]))
-            depth = -float(d.contact.dist[i])
-            if depth > worst_depth:
-                g1, g2 = int(d.contact.geom1[i]), int(d.contact.geom2[i])
-                worst_depth = depth
-                names = [m.geom(g).name or m.body(m.geom_bodyid[g]).name for g in (g1, g2)]
-                depth_where = f"{names[0]} / {names[1]} (seed {episode_seed}, step {step % 50})"
-        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, grip, grip_vel, 0)
-        for j in free:
-            vel = d.qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + 3]
-            speed = float(np.linalg.norm(vel))
-            where = f"{m.body(m.jnt_bodyid[j]).name} (seed {episode_seed}, step {step % 50})"
-            if speed > worst_speed:
-                worst_speed, speed_where = speed, where
-            if j in touched and step % 50:
-                launch = speed - float(np.linalg.norm(grip_vel[3:]))
-                if launch > worst_launch:
-                    worst_launch, launch_where = launch, where
-        bodies = m.geom_bodyid[d.contact.geom1[: d.ncon]].tolist(), m.geom_bodyid[d.contact.geom2[: d.ncon]].tolist()
-        pairs = zip(*bodies, strict=True)
-        touched = {j for a, b in pairs for j in free
-                   if (a == m.jnt_bodyid[j] and b in robot) or (b == m.jnt_bodyid[j] and a in robot)}
-    return {"depth": worst_depth, "depth_where": depth_where, "speed": worst_speed, "speed_where": speed_where,
-            "launch": worst_launch, "launch_where": launch_where,
-            "steps_per_s": steps / (time.perf_counter() - start)}
+        watch.after_step(f"seed {episode_seed}, step {step % 50}")
+    return watch.result(time.perf_counter() - start)
+
+
+def in_use(env_id: str, seeds: int, noise: float) -> dict[str, object]:
+    """The same figures in the expert's own episodes (seeds 0..seeds-1, Gaussian action noise of std
+    `noise`, clipped): what the physics does in the use it is made for, beside the abuse."""
+    env = gym.make(env_id)
+    u = env.unwrapped
+    watch = Watch(u.model, u.data)
+    expert = make_expert(env)
+    rng = np.random.default_rng(12345)
+    start = time.perf_counter()
+    for seed in range(seeds):
+        obs, _ = env.reset(seed=seed)
+        expert.reset()
+        watch.episode()
+        for step in itertools.count():
+            action = expert(obs)
+            if noise:
+                action = np.clip(action + rng.normal(0.0, noise, size=4), -1.0, 1.0).astype(np.float32)
+            obs, _, terminated, truncated, _ = env.step(action)
+            watch.after_step(f"seed {seed}, step {step}")
+            if terminated or truncated:
+                break
+    return watch.result(time.perf_counter() - start)
 
 
 def cost(env_id: str, steps: int, rounds: int = 5) -> float:
@@ -144,7 +199,22 @@ def main() -> None:
                         help="instead: steps/s with the room's stiff contacts over steps/s with MuJoCo's defaults")
     parser.add_argument("--experts", type=int, default=0, metavar="N",
                         help="also run each task's expert on seeds 0..N-1, plain and with action noise 0.1")
+    parser.add_argument("--in-use", type=int, default=0, metavar="N",
+                        help="instead: the same figures in each task's expert episodes, seeds 0..N-1, plain "
+                             "and with action noise 0.1")
     args = parser.parse_args()
+    if args.in_use:
+        print(f"mujoco {mujoco.__version__}; the experts' episodes, seeds 0-{args.in_use - 1}\n")
+        print("| task | action noise | worst penetration [mm] | where | steps > 5 mm | fastest launch [m/s] | which "
+              "| steps > 1 m/s | steps |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for env_id in args.only:
+            for noise in (0.0, 0.1):
+                r = in_use(env_id, args.in_use, noise)
+                print(f"| `{env_id}` | {noise} | {r['depth'] * 1000:.1f} | {r['depth_where'] or '-'} | "
+                      f"{r['deep_steps']} | {r['launch']:.2f} | {r['launch_where'] or '-'} | {r['launch_steps']} | "
+                      f"{r['steps']} |", flush=True)
+        return
     # Only our room's tasks have two contact models to compare.
     only = [e for e in args.only if (args.contacts == "model" and not args.cost) or room_geoms(gym.make(e))]
     if args.cost:
@@ -155,14 +225,14 @@ def main() -> None:
         return
     print(f"mujoco {mujoco.__version__}; {args.steps} abusive steps per task, seed {args.seed}, "
           f"{args.contacts} contacts\n")
-    print("| task | worst penetration [mm] | where | fastest object [m/s] | which | fastest launch [m/s] | which "
-          "| steps/s |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| task | worst penetration [mm] | where | steps > 5 mm | fastest object [m/s] | which "
+          "| fastest launch [m/s] | which | steps > 1 m/s | steps/s |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for env_id in only:
         r = abuse(env_id, args.steps, args.seed, args.contacts)
-        print(f"| `{env_id}` | {r['depth'] * 1000:.1f} | {r['depth_where']} | {r['speed']:.2f} | "
-              f"{r['speed_where'] or '-'} | {r['launch']:.2f} | {r['launch_where'] or '-'} | {r['steps_per_s']:,.0f} |",
-              flush=True)
+        print(f"| `{env_id}` | {r['depth'] * 1000:.1f} | {r['depth_where']} | {r['deep_steps']} | {r['speed']:.2f} | "
+              f"{r['speed_where'] or '-'} | {r['launch']:.2f} | {r['launch_where'] or '-'} | {r['launch_steps']} | "
+              f"{r['steps_per_s']:,.0f} |", flush=True)
     prepare = soften if args.contacts == "mujoco" else None
     if args.experts:
         print(f"\n| task | expert, seeds 0-{args.experts - 1} | with action noise 0.1 | first success: mean step |")
