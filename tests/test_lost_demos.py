@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 from fetch.cli import main
+from procs import alive, children
 
 
 def _collect(out: pathlib.Path, episodes: int) -> int:
@@ -58,21 +59,6 @@ def test_deleting_a_lock_file_does_not_let_a_second_collector_in(tmp_path: pathl
     assert first.returncode == 128 + signal.SIGTERM
 
 
-def _children(pid: int) -> set[int]:
-    found: set[int] = set()
-    for task in pathlib.Path(f"/proc/{pid}/task").iterdir():
-        found |= {int(c) for c in (task / "children").read_text().split()}
-    return found
-
-
-def _alive(pid: int) -> bool:
-    try:
-        state = pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except FileNotFoundError:
-        return False
-    return state not in ("Z", "X")
-
-
 def test_render_workers_die_with_a_killed_collector(tmp_path: pathlib.Path) -> None:
     import time
 
@@ -86,14 +72,14 @@ def test_render_workers_die_with_a_killed_collector(tmp_path: pathlib.Path) -> N
         saves += line.startswith("saved ")
         if saves >= 2:
             break
-    children = _children(proc.pid)
-    assert children, "the collector should have started render workers"
+    workers = children(proc.pid)
+    assert workers, "the collector should have started render workers"
     proc.kill()
     proc.communicate(timeout=30)
     deadline = time.monotonic() + 20
-    while any(_alive(c) for c in children) and time.monotonic() < deadline:
+    while any(alive(c) for c in workers) and time.monotonic() < deadline:
         time.sleep(0.2)
-    assert not [c for c in children if _alive(c)], "render workers outlived the collector"
+    assert not [c for c in workers if alive(c)], "render workers outlived the collector"
 
 
 def test_the_writer_falls_at_most_max_queued_demos_behind(tmp_path: pathlib.Path) -> None:

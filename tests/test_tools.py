@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 import shutil
+import signal
+import subprocess
+import sys
+import time
 
 import h5py
 import numpy as np
@@ -15,6 +20,7 @@ from fetch.dataset import open_dataset, validate
 from fetch.dataset.background import BackgroundWriter
 from fetch.dataset.frames import StateRenderer
 from fetch.dataset.video import read_video
+from procs import children, command_line
 from robomimic_rules import assert_robomimic_loadable
 
 ENV = "Reach-v2"  # the quickest expert: a few short demos take a second
@@ -138,6 +144,47 @@ def test_render_obs_adds_exactly_the_images_collect_records(made: dict[str, path
         assert validate(ds) == [] and ds.layout.cameras == ("front",) and ds.layout.image_size == 32
     assert_robomimic_loadable(plain / "demos.hdf5", ("observation", "front_image"))
     assert main(["replay", str(plain)]) == 0  # still replays exactly
+
+
+def render_obs_killing_workers(path: pathlib.Path, kills: int) -> tuple[subprocess.CompletedProcess[str], int]:
+    """`render-obs` on `path` in a process whose render workers are killed (SIGKILL, as the kernel's
+    out-of-memory killer would) as they start, `kills` times at most: (its result, how many were killed)."""
+    command = [sys.executable, "-m", "fetch.cli", "render-obs", str(path), "--camera", "front", "--size", "32",
+               "--workers", "1"]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    killed: set[int] = set()
+    deadline = time.monotonic() + 120
+    while len(killed) < kills and proc.poll() is None and time.monotonic() < deadline:
+        for pid in children(proc.pid) - killed:
+            if "spawn_main" in command_line(pid):  # a worker, not multiprocessing's resource tracker
+                os.kill(pid, signal.SIGKILL)
+                killed.add(pid)
+        time.sleep(0.01)
+    out, err = proc.communicate(timeout=120)
+    return subprocess.CompletedProcess(command, proc.returncode, out, err), len(killed)
+
+
+def test_render_obs_starts_its_workers_again_when_one_is_killed(made: dict[str, pathlib.Path],
+                                                                plain: pathlib.Path) -> None:
+    """The run starts new workers, renders the demos it had not written, and ends with the same images
+    as an undisturbed one."""
+    result, killed = render_obs_killing_workers(plain, kills=1)
+    assert killed == 1 and result.returncode == 0, result.stderr[-500:]
+    assert "a render worker died while rendering demo_0; starting new workers to render it again" in result.stderr
+    assert "rendered front for 3 demo(s)" in result.stdout
+    after, live = everything(plain), everything(made["recorded"])
+    for key in [k for k in after if "front_image" in k]:
+        np.testing.assert_array_equal(after[key], live[key], err_msg=key)  # type: ignore[arg-type]
+    assert len([k for k in after if "front_image" in k]) == 6
+
+
+def test_render_obs_gives_up_with_the_dataset_unchanged_when_its_workers_keep_dying(plain: pathlib.Path) -> None:
+    before = everything(plain)
+    result, killed = render_obs_killing_workers(plain, kills=3)
+    assert killed == 3 and result.returncode == 2, result.stderr[-500:]
+    assert "a render worker died while rendering demo_0, after 2 restarts" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert_same(before, everything(plain))
 
 
 def test_render_obs_adds_a_second_camera_and_refuses_a_second_size(plain: pathlib.Path,

@@ -13,6 +13,7 @@ import concurrent.futures
 import dataclasses
 import os
 import pathlib
+import sys
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -100,35 +101,49 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
         return RenderReport(len(names), frames, time.perf_counter() - start, workers)
 
 
+RESTARTS = 2
+"""How often `render-obs` starts its workers again after one died (a native crash, the kernel's
+out-of-memory killer), rendering the demos it had not yet written again. A crash that comes
+back every time still ends the run with a clear error, the dataset unchanged."""
+
+
 def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size: int, camera: str,
               names: list[str], workers: int) -> Iterator[tuple[str, np.ndarray]]:
     """(name, images) in the order of `names`, rendered by `workers` processes."""
     from fetch.dataset.frames import RenderPool
 
-    with RenderPool(env_id, env_kwargs, size, workers) as pool, open_dataset(index) as ds:
-        queue = iter(names)
+    restarts = RESTARTS
+    ahead = 2 * workers  # a few demos ahead of the writing, not every demo's images at once
+    with open_dataset(index) as ds:
+        queue = collections.deque(names)
         pending: collections.deque[tuple[str, concurrent.futures.Future[dict[str, np.ndarray]]]] = \
             collections.deque()
-
-        def submit_next() -> None:
-            name = next(queue, None)
-            if name is not None:
-                pending.append((name, pool.submit(ds.demo(name)["states"][()], (camera,))))
-
-        for _ in range(2 * workers):  # a few demos ahead of the writing, not every demo's images at once
-            submit_next()
+        pool = RenderPool(env_id, env_kwargs, size, workers)
         try:
-            while pending:
-                name, future = pending.popleft()
+            while pending or queue:
                 try:
-                    images = future.result()[camera]
+                    while queue and len(pending) < ahead:
+                        future = pool.submit(ds.demo(queue[0])["states"][()], (camera,))
+                        pending.append((queue.popleft(), future))
+                    images = pending[0][1].result()[camera]
                 except concurrent.futures.process.BrokenProcessPool as e:
-                    raise DatasetError(f"a render worker died while rendering {name}: {e}") from e
-                submit_next()
-                yield name, images
+                    name = pending[0][0] if pending else queue[0]
+                    if not restarts:
+                        raise DatasetError(f"a render worker died while rendering {name}, after "
+                                           f"{RESTARTS} restarts: {e}") from e
+                    restarts -= 1
+                    print(f"a render worker died while rendering {name}; starting new workers to render it "
+                          f"again ({restarts} more restart(s) allowed)", file=sys.stderr, flush=True)
+                    queue.extendleft(reversed([n for n, _ in pending]))
+                    pending.clear()
+                    pool.close()
+                    pool = RenderPool(env_id, env_kwargs, size, workers)
+                    continue
+                yield pending.popleft()[0], images
         finally:
             for _, future in pending:
                 future.cancel()
+            pool.close()
 
 
 def describe(report: RenderReport, camera: str, path: str) -> str:
