@@ -270,7 +270,7 @@ def _rendered(ds: Dataset, names: Sequence[str], cameras: Sequence[str], size: i
         return
     from fetch.dataset.render_ahead import render_ahead
 
-    states = (ds.demo(name)["states"][:-1] for name in names)
-    for images in render_ahead(ds.env_id, ds.env_kwargs, size, workers, states, cameras):
+    jobs = ((name, ds.demo(name)["states"][:-1]) for name in names)
+    for images in render_ahead(ds.env_id, ds.env_kwargs, size, workers, jobs, cameras):
         assert images is not None  # every demo has states
         yield images

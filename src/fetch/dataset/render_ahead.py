@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import collections
 import concurrent.futures
+import sys
 from collections.abc import Iterable, Iterator, Sequence
 from typing import Any
 
@@ -11,40 +12,61 @@ import numpy as np
 
 from fetch.errors import DatasetError
 
-_END = object()
+RESTARTS = 2
+"""How often the workers are started again after one died (a native crash, the kernel's
+out-of-memory killer), rendering the demos in flight again. A death that comes back every time
+still ends the work with a clear error."""
+
+_UNSENT = object()
 
 
 def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: int,
-                 states: Iterable[np.ndarray | None], cameras: Sequence[str]) -> Iterator[dict[str, np.ndarray] | None]:
-    """For each array of states (N, state size), its images per camera ((N, size, size, 3) uint8), in
-    order; None for None. At most 2 x `workers` demos are in flight, not every demo's images at once."""
+                 jobs: Iterable[tuple[str, np.ndarray | None]],
+                 cameras: Sequence[str]) -> Iterator[dict[str, np.ndarray] | None]:
+    """For each (demo name, its states (N, state size)), the images per camera ((N, size, size, 3)
+    uint8), in order; None for None. At most 2 x `workers` demos are in flight, not every demo's
+    images at once. A worker that dies is replaced `RESTARTS` times at most (said on stderr)."""
     from fetch.dataset.frames import RenderPool
 
-    with RenderPool(env_id, env_kwargs, size, max(1, workers)) as pool:
-        source = iter(states)
-        pending: collections.deque[concurrent.futures.Future[dict[str, np.ndarray]] | None] = collections.deque()
-
-        def submit_next() -> None:
-            array = next(source, _END)
-            if isinstance(array, np.ndarray):
-                pending.append(pool.submit(array, tuple(cameras)))
-            elif array is None:
-                pending.append(None)
-
-        for _ in range(2 * max(1, workers)):
-            submit_next()
-        try:
-            while pending:
-                future = pending.popleft()
-                submit_next()
-                if future is None:
-                    yield None
-                    continue
-                try:
-                    yield future.result()
-                except concurrent.futures.process.BrokenProcessPool as e:
-                    raise DatasetError(f"a render worker died: {e}") from e
-        finally:
-            for future in pending:
-                if future is not None:
-                    future.cancel()
+    workers = max(1, workers)
+    source = iter(jobs)
+    # [name, states, future]: the future is None for no states, _UNSENT until submitted.
+    pending: collections.deque[list[Any]] = collections.deque()
+    restarts = RESTARTS
+    pool = RenderPool(env_id, env_kwargs, size, workers)
+    try:
+        while True:
+            try:
+                for entry in pending:
+                    if entry[2] is _UNSENT:
+                        entry[2] = pool.submit(entry[1], tuple(cameras))
+                while len(pending) < 2 * workers and (job := next(source, None)) is not None:
+                    name, states = job
+                    pending.append([name, states, None if states is None else _UNSENT])
+                    if states is not None:
+                        pending[-1][2] = pool.submit(states, tuple(cameras))
+                if not pending:
+                    return
+                future = pending[0][2]
+                images = None if future is None else future.result()
+            except concurrent.futures.process.BrokenProcessPool as e:
+                name = pending[0][0]
+                if not restarts:
+                    raise DatasetError(f"a render worker died while rendering {name}, after {RESTARTS} "
+                                       f"restarts: {e}") from e
+                restarts -= 1
+                print(f"a render worker died while rendering {name}; starting new workers to render it again "
+                      f"({restarts} more restart(s) allowed)", file=sys.stderr, flush=True)
+                for entry in pending:
+                    if entry[2] is not None:
+                        entry[2] = _UNSENT
+                pool.close()
+                pool = RenderPool(env_id, env_kwargs, size, workers)
+                continue
+            pending.popleft()
+            yield images
+    finally:
+        for entry in pending:
+            if isinstance(entry[2], concurrent.futures.Future):
+                entry[2].cancel()
+        pool.close()

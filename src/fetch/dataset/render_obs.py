@@ -8,12 +8,9 @@ failed or interrupted run leaves the dataset as it was.
 
 from __future__ import annotations
 
-import collections
-import concurrent.futures
 import dataclasses
 import os
 import pathlib
-import sys
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -25,7 +22,7 @@ from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.durable import Rewrites, editing
 from fetch.dataset.reader import open_dataset, require_valid, resolve
-from fetch.errors import DatasetError, FetchError
+from fetch.errors import FetchError
 from fetch.teleop.stopping import raise_if_stopped
 
 
@@ -101,49 +98,16 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
         return RenderReport(len(names), frames, time.perf_counter() - start, workers)
 
 
-RESTARTS = 2
-"""How often `render-obs` starts its workers again after one died (a native crash, the kernel's
-out-of-memory killer), rendering the demos it had not yet written again. A crash that comes
-back every time still ends the run with a clear error, the dataset unchanged."""
-
-
 def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size: int, camera: str,
               names: list[str], workers: int) -> Iterator[tuple[str, np.ndarray]]:
     """(name, images) in the order of `names`, rendered by `workers` processes."""
-    from fetch.dataset.frames import RenderPool
+    from fetch.dataset.render_ahead import render_ahead
 
-    restarts = RESTARTS
-    ahead = 2 * workers  # a few demos ahead of the writing, not every demo's images at once
     with open_dataset(index) as ds:
-        queue = collections.deque(names)
-        pending: collections.deque[tuple[str, concurrent.futures.Future[dict[str, np.ndarray]]]] = \
-            collections.deque()
-        pool = RenderPool(env_id, env_kwargs, size, workers)
-        try:
-            while pending or queue:
-                try:
-                    while queue and len(pending) < ahead:
-                        future = pool.submit(ds.demo(queue[0])["states"][()], (camera,))
-                        pending.append((queue.popleft(), future))
-                    images = pending[0][1].result()[camera]
-                except concurrent.futures.process.BrokenProcessPool as e:
-                    name = pending[0][0] if pending else queue[0]
-                    if not restarts:
-                        raise DatasetError(f"a render worker died while rendering {name}, after "
-                                           f"{RESTARTS} restarts: {e}") from e
-                    restarts -= 1
-                    print(f"a render worker died while rendering {name}; starting new workers to render it "
-                          f"again ({restarts} more restart(s) allowed)", file=sys.stderr, flush=True)
-                    queue.extendleft(reversed([n for n, _ in pending]))
-                    pending.clear()
-                    pool.close()
-                    pool = RenderPool(env_id, env_kwargs, size, workers)
-                    continue
-                yield pending.popleft()[0], images
-        finally:
-            for _, future in pending:
-                future.cancel()
-            pool.close()
+        jobs = ((name, ds.demo(name)["states"][()]) for name in names)
+        for name, images in zip(names, render_ahead(env_id, env_kwargs, size, workers, jobs, (camera,)), strict=True):
+            assert images is not None  # every demo has states
+            yield name, images[camera]
 
 
 def describe(report: RenderReport, camera: str, path: str) -> str:

@@ -173,7 +173,7 @@ def _frames(ds: Dataset, names: list[str], camera: str, size: int, workers: int)
         ok = array.ndim == 2 and array.shape[1] == ds.layout.state_size and np.all(np.isfinite(array))
         return array if ok and len(array) else None
 
-    jobs = (states(name) for name in names)
+    jobs = ((name, states(name)) for name in names)
     for images in render_ahead(ds.env_id, ds.env_kwargs, size, min(workers, max(1, len(names))), jobs, (camera,)):
         yield None if images is None else images[camera]
 
