@@ -7,8 +7,12 @@ time, from any camera, at any size, bit-identical to images rendered while it wa
 from __future__ import annotations
 
 import concurrent.futures
+import itertools
 import multiprocessing
 import os
+import pathlib
+import shutil
+import tempfile
 import threading
 import time
 from collections.abc import Sequence
@@ -107,7 +111,10 @@ def _start_process(env_id: str, env_kwargs: dict[str, Any], size: int, nice: int
     _process_renderer.append(StateRenderer(env_id, env_kwargs, size, size))
 
 
-def _render_in_process(states: np.ndarray, cameras: Sequence[str]) -> dict[str, np.ndarray]:
+def _render_in_process(path: str, cameras: Sequence[str]) -> dict[str, np.ndarray]:
+    """Render the states saved at `path` (removed once read)."""
+    states = np.load(path)
+    os.unlink(path)
     renderer = _process_renderer[0]
     return {camera: renderer.frames(states, camera) for camera in cameras}
 
@@ -119,10 +126,18 @@ class RenderPool:
         self._pool = concurrent.futures.ProcessPoolExecutor(
             workers, mp_context=multiprocessing.get_context("spawn"),  # no GL or HDF5 state inherited
             initializer=_start_process, initargs=(env_id, env_kwargs, size, nice, os.getpid()))
+        # The states go to the workers as files, and only their paths through the pool's pipe. A
+        # demo's states fill that pipe (64 KiB), and on a Python without the fix for CPython gh-94777
+        # (Debian 12's 3.11.2 is one) a worker that dies while the pool writes to it deadlocks the
+        # pool for good: its shutdown waits for a thread stuck writing to the dead worker.
+        self._dir = pathlib.Path(tempfile.mkdtemp(prefix="fetch-render-"))
+        self._jobs = itertools.count()
 
     def submit(self, states: np.ndarray, cameras: Sequence[str]) -> concurrent.futures.Future[dict[str, np.ndarray]]:
         """Images of every state, per camera ((N, size, size, 3) uint8), when the future is done."""
-        return self._pool.submit(_render_in_process, states, tuple(cameras))
+        path = self._dir / f"{next(self._jobs)}.npy"
+        np.save(path, states)
+        return self._pool.submit(_render_in_process, str(path), tuple(cameras))
 
     def render(self, states: np.ndarray, cameras: Sequence[str]) -> dict[str, np.ndarray]:
         try:
@@ -131,7 +146,10 @@ class RenderPool:
             raise FetchError(f"the render process died: {e}") from e
 
     def close(self) -> None:
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        try:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        finally:
+            shutil.rmtree(self._dir, ignore_errors=True)
 
     def __enter__(self) -> RenderPool:
         return self
