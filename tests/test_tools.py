@@ -160,7 +160,12 @@ def render_obs_killing_workers(path: pathlib.Path, kills: int) -> tuple[subproce
                 os.kill(pid, signal.SIGKILL)
                 killed.add(pid)
         time.sleep(0.01)
-    out, err = proc.communicate(timeout=120)
+    try:
+        out, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        raise AssertionError(f"render-obs hung after {len(killed)} of its workers were killed") from None
     return subprocess.CompletedProcess(command, proc.returncode, out, err), len(killed)
 
 
