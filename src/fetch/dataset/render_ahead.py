@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import collections
 import concurrent.futures
+import dataclasses
 import sys
 from collections.abc import Iterable, Iterator, Sequence
 from typing import Any
@@ -17,7 +18,12 @@ RESTARTS = 2
 out-of-memory killer), rendering the demos in flight again. A death that comes back every time
 still ends the work with a clear error."""
 
-_UNSENT = object()
+@dataclasses.dataclass
+class _Job:
+    name: str
+    states: np.ndarray | None
+    future: concurrent.futures.Future[dict[str, np.ndarray]] | None = None
+    """None until submitted to the current workers (and for no states)."""
 
 
 def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: int,
@@ -30,43 +36,37 @@ def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: in
 
     workers = max(1, workers)
     source = iter(jobs)
-    # [name, states, future]: the future is None for no states, _UNSENT until submitted.
-    pending: collections.deque[list[Any]] = collections.deque()
+    pending: collections.deque[_Job] = collections.deque()
     restarts = RESTARTS
     pool = RenderPool(env_id, env_kwargs, size, workers)
     try:
         while True:
             try:
-                for entry in pending:
-                    if entry[2] is _UNSENT:
-                        entry[2] = pool.submit(entry[1], tuple(cameras))
                 while len(pending) < 2 * workers and (job := next(source, None)) is not None:
-                    name, states = job
-                    pending.append([name, states, None if states is None else _UNSENT])
-                    if states is not None:
-                        pending[-1][2] = pool.submit(states, tuple(cameras))
+                    pending.append(_Job(*job))
+                for waiting in pending:
+                    if waiting.states is not None and waiting.future is None:
+                        waiting.future = pool.submit(waiting.states, tuple(cameras))
                 if not pending:
                     return
-                future = pending[0][2]
-                images = None if future is None else future.result()
+                first = pending[0]
+                images = None if first.future is None else first.future.result()
             except concurrent.futures.process.BrokenProcessPool as e:
-                name = pending[0][0]
                 if not restarts:
-                    raise DatasetError(f"a render worker died while rendering {name}, after {RESTARTS} "
-                                       f"restarts: {e}") from e
+                    raise DatasetError(f"a render worker died while rendering {pending[0].name}, after "
+                                       f"{RESTARTS} restarts: {e}") from e
                 restarts -= 1
-                print(f"a render worker died while rendering {name}; starting new workers to render it again "
-                      f"({restarts} more restart(s) allowed)", file=sys.stderr, flush=True)
-                for entry in pending:
-                    if entry[2] is not None:
-                        entry[2] = _UNSENT
+                print(f"a render worker died while rendering {pending[0].name}; starting new workers to render "
+                      f"it again ({restarts} more restart(s) allowed)", file=sys.stderr, flush=True)
+                for waiting in pending:
+                    waiting.future = None
                 pool.close()
                 pool = RenderPool(env_id, env_kwargs, size, workers)
                 continue
             pending.popleft()
             yield images
     finally:
-        for entry in pending:
-            if isinstance(entry[2], concurrent.futures.Future):
-                entry[2].cancel()
+        for waiting in pending:
+            if waiting.future is not None:
+                waiting.future.cancel()
         pool.close()
