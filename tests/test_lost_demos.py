@@ -82,6 +82,38 @@ def test_render_workers_die_with_a_killed_collector(tmp_path: pathlib.Path) -> N
     assert not [c for c in workers if alive(c)], "render workers outlived the collector"
 
 
+def test_the_collector_replaces_a_render_worker_that_dies(tmp_path: pathlib.Path) -> None:
+    """Its camera images are rendered in a worker process after each demo is saved: a worker killed
+    (as the out-of-memory killer would) is replaced, and every demo still gets its images."""
+    import os
+    import time
+
+    from fetch.dataset import open_dataset, validate
+    from procs import command_line
+
+    out = tmp_path / "demos"
+    command = [sys.executable, "-u", "-m", "fetch.cli", "collect", "--env", "Reach-v2", "--device", "expert",
+               "--render", "none", "--episodes", "4", "--cameras", "front", "--image-size", "32", "--out", str(out)]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    killed = None
+    deadline = time.monotonic() + 120
+    while killed is None and proc.poll() is None and time.monotonic() < deadline:
+        for pid in children(proc.pid):
+            if "spawn_main" in command_line(pid):  # the render worker, not multiprocessing's resource tracker
+                os.kill(pid, signal.SIGKILL)
+                killed = pid
+                break
+        time.sleep(0.01)
+    out_text, err = proc.communicate(timeout=120)
+    assert killed is not None, "the collector should have started a render worker"
+    assert proc.returncode == 0, err[-500:]
+    assert "the render worker died while rendering demo_0's images; starting a new one" in err
+    with open_dataset(out) as ds:
+        assert len(ds.demo_names) == 4 and validate(ds) == []
+        for name in ds.demo_names:
+            assert ds.demo(name)["next_obs/front_image"].shape[1:] == (32, 32, 3), name
+
+
 def test_the_writer_falls_at_most_max_queued_demos_behind(tmp_path: pathlib.Path) -> None:
     """A slow disk: commits wait for the writer instead of piling up demos that a crash would lose."""
     import time

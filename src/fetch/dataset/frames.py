@@ -139,12 +139,6 @@ class RenderPool:
         np.save(path, states)
         return self._pool.submit(_render_in_process, str(path), tuple(cameras))
 
-    def render(self, states: np.ndarray, cameras: Sequence[str]) -> dict[str, np.ndarray]:
-        try:
-            return self.submit(states, cameras).result()
-        except concurrent.futures.process.BrokenProcessPool as e:
-            raise FetchError(f"the render process died: {e}") from e
-
     def close(self) -> None:
         try:
             self._pool.shutdown(wait=True, cancel_futures=True)

@@ -9,6 +9,7 @@ the index is complete (it was renamed after its flush) and is adopted by the nex
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import dataclasses
 import importlib.metadata
@@ -269,17 +270,34 @@ class DatasetWriter(BackgroundWriter):
         cameras = self._images_missing(demo.arrays)
         if not cameras:
             return
-        if self._renderer is None:
-            from fetch.dataset.frames import RenderPool
-
-            h = self.header
-            self._renderer = RenderPool(h.env_id, h.env_kwargs, h.layout.image_size, workers=1, nice=10)
-        images = self._renderer.render(demo.arrays["states"], cameras)
+        images = self._render(name, demo.arrays["states"], cameras)
         arrays = dict(demo.arrays)
         for camera, frames in images.items():
             arrays[f"obs/{schema.image_key(camera)}"] = frames[:-1]
             arrays[f"next_obs/{schema.image_key(camera)}"] = frames[1:]
         write_demo_file(path, name, Demo(arrays, demo.attrs))
+
+    def _render(self, name: str, states: np.ndarray, cameras: list[str]) -> dict[str, np.ndarray]:
+        """A demo's images, from a worker process; one that dies is replaced, as render_ahead's are."""
+        from fetch.dataset.frames import RenderPool
+        from fetch.dataset.render_ahead import RESTARTS
+
+        restarts = RESTARTS
+        while True:
+            if self._renderer is None:
+                h = self.header
+                self._renderer = RenderPool(h.env_id, h.env_kwargs, h.layout.image_size, workers=1, nice=10)
+            try:
+                return self._renderer.submit(states, cameras).result()
+            except concurrent.futures.process.BrokenProcessPool as e:
+                self._renderer.close()
+                self._renderer = None
+                if not restarts:  # the demo stays saved without images; the next session renders them
+                    raise DatasetError(f"the render worker died while rendering {name}'s images, after "
+                                       f"{RESTARTS} restarts: {e}") from e
+                restarts -= 1
+                print(f"the render worker died while rendering {name}'s images; starting a new one "
+                      f"({restarts} more restart(s) allowed)", file=sys.stderr, flush=True)
 
     def close(self) -> None:
         try:
