@@ -123,15 +123,24 @@ class RenderPool:
     """`workers` processes that render states to square `size` images; `nice` lowers their priority."""
 
     def __init__(self, env_id: str, env_kwargs: dict[str, Any], size: int, workers: int = 1, nice: int = 0) -> None:
-        self._pool = concurrent.futures.ProcessPoolExecutor(
-            workers, mp_context=multiprocessing.get_context("spawn"),  # no GL or HDF5 state inherited
-            initializer=_start_process, initargs=(env_id, env_kwargs, size, nice, os.getpid()))
+        self._workers, self._initargs = workers, (env_id, env_kwargs, size, nice, os.getpid())
+        self._pool = self._start()
         # The states go to the workers as files, and only their paths through the pool's pipe. A
         # demo's states fill that pipe (64 KiB), and on a Python without the fix for CPython gh-94777
         # (Debian 12's 3.11.2 is one) a worker that dies while the pool writes to it deadlocks the
         # pool for good: its shutdown waits for a thread stuck writing to the dead worker.
         self._dir = pathlib.Path(tempfile.mkdtemp(prefix="fetch-render-"))
         self._jobs = itertools.count()
+
+    def _start(self) -> concurrent.futures.ProcessPoolExecutor:
+        return concurrent.futures.ProcessPoolExecutor(
+            self._workers, mp_context=multiprocessing.get_context("spawn"),  # no GL or HDF5 state inherited
+            initializer=_start_process, initargs=self._initargs)
+
+    def replace_workers(self) -> None:
+        """Start new workers in place of a pool that a dead one broke (its futures stay failed)."""
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pool = self._start()
 
     def submit(self, states: np.ndarray, cameras: Sequence[str]) -> concurrent.futures.Future[dict[str, np.ndarray]]:
         """Images of every state, per camera ((N, size, size, 3) uint8), when the future is done."""

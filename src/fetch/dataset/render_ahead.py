@@ -60,8 +60,7 @@ def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: in
                       f"it again ({restarts} more restart(s) allowed)", file=sys.stderr, flush=True)
                 for waiting in pending:
                     waiting.future = None
-                pool.close()
-                pool = RenderPool(env_id, env_kwargs, size, workers)
+                pool.replace_workers()
                 continue
             pending.popleft()
             yield images

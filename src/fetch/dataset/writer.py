@@ -282,22 +282,23 @@ class DatasetWriter(BackgroundWriter):
         from fetch.dataset.frames import RenderPool
         from fetch.dataset.render_ahead import RESTARTS
 
+        if self._renderer is None:
+            h = self.header
+            self._renderer = RenderPool(h.env_id, h.env_kwargs, h.layout.image_size, workers=1, nice=10)
         restarts = RESTARTS
         while True:
-            if self._renderer is None:
-                h = self.header
-                self._renderer = RenderPool(h.env_id, h.env_kwargs, h.layout.image_size, workers=1, nice=10)
             try:
                 return self._renderer.submit(states, cameras).result()
             except concurrent.futures.process.BrokenProcessPool as e:
-                self._renderer.close()
-                self._renderer = None
                 if not restarts:  # the demo stays saved without images; the next session renders them
+                    self._renderer.close()
+                    self._renderer = None
                     raise DatasetError(f"the render worker died while rendering {name}'s images, after "
                                        f"{RESTARTS} restarts: {e}") from e
                 restarts -= 1
                 print(f"the render worker died while rendering {name}'s images; starting a new one "
                       f"({restarts} more restart(s) allowed)", file=sys.stderr, flush=True)
+                self._renderer.replace_workers()
 
     def close(self) -> None:
         try:
