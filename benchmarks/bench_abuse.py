@@ -17,7 +17,6 @@ chosen contacts; `--cost` times ordinary random steps both ways, alternating in 
 from __future__ import annotations
 
 import argparse
-import itertools
 import time
 from collections.abc import Callable
 
@@ -27,7 +26,6 @@ import numpy as np
 
 import fetch
 from expert_success import evaluate  # benchmarks/ is the script's directory, so on sys.path
-from fetch.experts import make_expert
 from fetch.robot import MUJOCO_SOLIMP, MUJOCO_SOLREF, ROOM_SOLIMP, ROOM_SOLREF
 
 DEPTH_BAR, LAUNCH_BAR = 0.005, 1.0
@@ -143,26 +141,18 @@ def measure(m: mujoco.MjModel, d: mujoco.MjData, reset: Callable[[int], object],
 
 def in_use(env_id: str, seeds: int, noise: float) -> dict[str, object]:
     """The same figures in the expert's own episodes (seeds 0..seeds-1, Gaussian action noise of std
-    `noise`, clipped): what the physics does in the use it is made for, beside the abuse."""
-    env = gym.make(env_id)
-    u = env.unwrapped
-    watch = Watch(u.model, u.data)
-    expert = make_expert(env)
-    rng = np.random.default_rng(12345)
+    `noise`, as expert_success.py runs them): what the physics does in the use it is made for."""
+    watches: list[Watch] = []
+
+    def watch(seed: int, step: int) -> None:
+        if step == 0:
+            watches[0].episode()
+        watches[0].after_step(f"seed {seed}, step {step}")
+
     start = time.perf_counter()
-    for seed in range(seeds):
-        obs, _ = env.reset(seed=seed)
-        expert.reset()
-        watch.episode()
-        for step in itertools.count():
-            action = expert(obs)
-            if noise:
-                action = np.clip(action + rng.normal(0.0, noise, size=4), -1.0, 1.0).astype(np.float32)
-            obs, _, terminated, truncated, _ = env.step(action)
-            watch.after_step(f"seed {seed}, step {step}")
-            if terminated or truncated:
-                break
-    return watch.result(time.perf_counter() - start)
+    evaluate(env_id, seeds, noise, prepare=lambda env: watches.append(Watch(env.unwrapped.model, env.unwrapped.data)),
+             after_step=watch)
+    return watches[0].result(time.perf_counter() - start)
 
 
 def cost(env_id: str, steps: int, rounds: int = 5) -> float:

@@ -14,9 +14,11 @@ from fetch.experts import make_expert
 
 
 def evaluate(env_id: str, seeds: int, noise: float, first_seed: int = 0,
-             prepare: Callable[[gym.Env], None] | None = None) -> dict[str, float]:
+             prepare: Callable[[gym.Env], None] | None = None,
+             after_step: Callable[[int, int], None] | None = None) -> dict[str, float]:
     """Run `seeds` episodes of the registered horizon, from seed `first_seed` on; Gaussian action
-    noise of std `noise`. `prepare` may change the env first (bench_abuse.py's contact trial)."""
+    noise of std `noise`. `prepare` may change the env first (bench_abuse.py's contact trial);
+    `after_step(seed, step)` looks at each step's result (step 0 is an episode's first)."""
     env = gym.make(env_id)
     if prepare is not None:
         prepare(env)
@@ -33,6 +35,8 @@ def evaluate(env_id: str, seeds: int, noise: float, first_seed: int = 0,
             if noise:
                 action = action + rng.normal(0.0, noise, size=4).astype(np.float32)
             obs, _, terminated, truncated, info = env.step(action)
+            if after_step is not None:
+                after_step(seed, step)
             step += 1
             if first is None and info["is_success"]:
                 first = step
