@@ -269,8 +269,8 @@ def test_eval_in_the_batched_vector_env_gives_what_separate_envs_give(torch, rea
     monkeypatch.setattr(ev, "make_vector_env", lambda *a: built.append(make(*a)) or built[-1])
     batched = ev.evaluate(policy, 6, envs=4)
     assert isinstance(built[0], FetchVectorEnv) == has_batch(), "the batched env wherever mujoco can thread it"
-    monkeypatch.setattr(ev, "make_vector_env", lambda env_id, count, kwargs: gym.vector.SyncVectorEnv(
-        [lambda: gym.make(env_id, **kwargs) for _ in range(count)]))
+    monkeypatch.setattr(ev, "make_vector_env", lambda env_id, count, kwargs, steps: gym.vector.SyncVectorEnv(
+        [lambda: gym.make(env_id, max_episode_steps=steps, **kwargs) for _ in range(count)]))
     separate = ev.evaluate(policy, 6, envs=4)
     assert batched == separate and 0 < len(batched.success) == 6
 
@@ -452,3 +452,33 @@ def test_mirror_on_a_task_that_is_not_symmetric_is_refused_before_anything_is_wr
     err = capsys.readouterr().err.strip()
     assert "Slide-v2 is not symmetric" in err and "Reach-v2, Push-v2, PickPlace-v2" in err, err
     assert len(err.splitlines()) == 1 and not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("style", ["standin", "rests", "slow", "pauses", "regrasp", "gripper", "side", "person"])
+def test_every_operators_style_goes_the_whole_path(torch, pad, style: str, tmp_path: pathlib.Path,  # noqa: ANN001
+                                                   capsys) -> None:  # noqa: ANN001
+    """Pad demos by each stand-in operator (tests/operators.py) -> generate -> train -> eval, tiny: the
+    commands are the same for every style; the run knows the horizon its demos need, and eval reports
+    both it and the registered one."""
+    import operators
+    from fetch.learn.data import load_demos
+    from fetch.learn.runtime import load
+
+    human = operators.record(pad, "PickPlace-v2", style, tmp_path / "human", 3, seed=11)
+    generated = tmp_path / "generated"
+    assert main(["generate", "--source", str(human), "--out", str(generated), "--demos", "6", "--workers", "1"]) == 0
+    assert _train(generated, tmp_path / "run", "--steps", "30", "--policy", "mlp-chunk") == 0
+    policy = load(tmp_path / "run")
+    assert policy.horizon == load_demos(generated).horizon >= 50
+    assert main(["eval", str(tmp_path / "run"), "--episodes", "3", "--envs", "3", "--json",
+                 str(tmp_path / "eval.json")]) == 0
+    result = json.loads((tmp_path / "eval.json").read_text())
+    assert result["horizon"] == policy.horizon and result["registered_horizon"] == 50
+    if style == "slow":  # the person's own demos, slower than 50 steps: a run on them is given their time
+        assert _train(human, tmp_path / "direct", "--steps", "20", "--policy", "mlp-chunk") == 0
+        direct = load(tmp_path / "direct")
+        assert direct.horizon > 50
+        capsys.readouterr()
+        assert main(["eval", str(tmp_path / "direct"), "--episodes", "2", "--envs", "2"]) == 0
+        out = capsys.readouterr().out
+        assert f"at step {direct.horizon} (the policy's horizon, from its demos); at the registered step 50" in out

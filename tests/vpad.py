@@ -180,7 +180,7 @@ class ExpertOnPad:
         x, y, z = np.clip(move / scale, -1.0, 1.0) if fine else move
         self.pad.set_stick(float(x), float(-y))  # SDL's stick y points down
         self.pad.set_triggers(max(0.0, -float(z)), max(0.0, float(z)))
-        from fetch.generate.attempt import SQUEEZE
+        from fetch.dataset.habits import SQUEEZE
 
         closed = self.device.mapper.gripper_closed  # type: ignore[attr-defined]
         if (action[3] > self.OPEN_ABOVE if closed else action[3] <= SQUEEZE) and not released & {"x"}:

@@ -15,6 +15,7 @@ import numpy as np
 
 from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.formats import recorded_layout
+from fetch.dataset.habits import SQUEEZE
 from fetch.errors import FetchError, UnknownNameError
 from fetch.experts.base import Expert
 from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
@@ -30,8 +31,9 @@ closest to where the hand is now (in the subtask's frame), or uniformly."""
 class Options:
     """How attempts are made (every field is recorded in the dataset and must match on resume)."""
 
-    max_steps: int
-    """steps per attempt at most."""
+    max_steps: int | None = None
+    """steps per attempt at most (None: `generate` gives the task's registered horizon, or more where
+    the source demos need it: `Sources.attempt_steps`)."""
     success_hold_steps: int = 5
     """an attempt succeeds if `is_success` holds over its last this many steps (with `stop_on_success`: once
     it has held this long, and stops there)."""
@@ -58,16 +60,12 @@ class Options:
             raise UnknownNameError("selection", self.selection, SELECTIONS)
         for name, value, low in (("max_steps", self.max_steps, 1), ("success_hold_steps", self.success_hold_steps, 1),
                                  ("nearest_k", self.nearest_k, 1)):
-            if value < low:
+            if value is not None and value < low:
                 raise FetchError(f"--{name.replace('_', '-')} must be at least {low}, got {value}")
         if not (math.isfinite(self.noise) and self.noise >= 0):
             raise FetchError(f"--noise must be a finite standard deviation >= 0, got {self.noise}")
         if not 0 < self.transit_speed <= 1 or not 0 <= self.blend_fraction <= 1:
             raise FetchError("transit_speed must be in (0, 1] and blend_fraction in [0, 1]")
-
-
-SQUEEZE = -0.5
-"""A source's a[3] at or below this closes the fingers on something: kept as it is, not servoed."""
 
 
 class Result(NamedTuple):
@@ -93,6 +91,9 @@ class Generator:
 
     def __init__(self, env_id: str, env_kwargs: dict[str, Any], sources: Sequence[Sequence[Segment]],
                  options: Options, seed: int) -> None:
+        if options.max_steps is None:
+            raise FetchError("Options.max_steps must be set before attempts are made (generate sets it)")
+        self.max_steps: int = options.max_steps
         self.env = gym.make(env_id, max_episode_steps=options.max_steps, **env_kwargs)
         base: Any = self.env.unwrapped
         self.base = base
@@ -104,7 +105,7 @@ class Generator:
         self.options = options
         self.seed = seed
         self.scene = Scene(base.model)
-        self.buffer = EpisodeBuffer(recorded_layout(self.env), capacity=options.max_steps)
+        self.buffer = EpisodeBuffer(recorded_layout(self.env), capacity=self.max_steps)
         self._obs: dict[str, np.ndarray] = {}  # the env's latest observation
         self._start_in_frame = [np.stack([s[k].hand_in_frame() for s in sources]) for k in range(len(self.subtasks))]
 
@@ -159,7 +160,7 @@ class Generator:
         success = False
         target = held_grip(base)
         for k, subtask in enumerate(self.subtasks):
-            if steps >= o.max_steps or (success and o.stop_on_success):
+            if steps >= self.max_steps or (success and o.stop_on_success):
                 break
             held = held_grip(base)
             frame = subtask.frame(self.scene, base.data)
@@ -170,17 +171,17 @@ class Generator:
                 opening = None if openings is None else float(openings[i])
                 success, held_for = self._step(target, grip, opening, rng, held_for)
                 steps += 1
-                if steps >= o.max_steps or (success and o.stop_on_success):
+                if steps >= self.max_steps or (success and o.stop_on_success):
                     break
         if o.stop_on_success:
             # The source's last segment ends when its success had held; give ours a few steps more.
             extra = 2 * o.success_hold_steps
-            while not success and steps < o.max_steps and extra > 0:
+            while not success and steps < self.max_steps and extra > 0:
                 success, held_for = self._step(target, grip, opening, rng, held_for)
                 steps += 1
                 extra -= 1
         else:  # to the horizon, holding the last target; judged by the last steps
-            while steps < o.max_steps:
+            while steps < self.max_steps:
                 success, held_for = self._step(target, grip, opening, rng, held_for)
                 steps += 1
         demo = None

@@ -22,7 +22,9 @@ def add_generate_parser(sub: Any) -> None:
     g.add_argument("--ray", nargs="?", const="auto", default=None, metavar="ADDRESS",
                    help="run attempts as Ray actors on a cluster (default address: auto, the cluster this "
                         "machine belongs to; 'local' starts one here)")
-    g.add_argument("--max-steps", type=int, default=None, help="steps per attempt (default: the env's horizon)")
+    g.add_argument("--max-steps", type=int, default=None,
+                   help="steps per attempt (default: the env's horizon, or more where the source demos, their "
+                        "idle steps left out, need it)")
     g.add_argument("--success-hold-steps", type=int, default=5,
                    help="success must hold over an attempt's last this many steps (default 5)")
     g.add_argument("--stop-on-success", action=argparse.BooleanOptionalAction, default=False,
@@ -43,17 +45,9 @@ def add_generate_parser(sub: Any) -> None:
 
 
 def run_generate(args: argparse.Namespace) -> int:
-    import gymnasium as gym
-
     from fetch.generate.attempt import Options
     from fetch.generate.run import GenerateConfig, generate
 
-    if args.max_steps is None:
-        from fetch.dataset.reader import open_dataset
-
-        with open_dataset(args.source) as ds:
-            env_id = ds.env_id
-        args.max_steps = int(gym.spec(env_id).max_episode_steps or 50)
     options = Options(max_steps=args.max_steps, success_hold_steps=args.success_hold_steps, selection=args.selection,
                       nearest_k=args.nearest_k, noise=args.noise, stop_on_success=args.stop_on_success)
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,

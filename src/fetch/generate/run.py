@@ -116,8 +116,9 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
     """Generate until `--out` holds `config.demos` demos (or the attempts run out)."""
     say = log or (lambda text: print(text, file=sys.stderr, flush=True))
     sources = load_sources(config.source)
-    spec = gym.spec(sources.env_id)
-    options = config.options or Options(max_steps=int(spec.max_episode_steps or 50))
+    options = config.options or Options()
+    if options.max_steps is None:
+        options = dataclasses.replace(options, max_steps=sources.attempt_steps(options.success_hold_steps))
     if sources.skipped:
         say(f"{len(sources.skipped)} source demo(s) could not be cut into {', '.join(sources.subtasks)} "
             f"and are not used: {', '.join(sources.skipped[:5])}")

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from fetch.dataset.habits import REGRIP, SQUEEZE, STILL, still_steps
 from fetch.errors import FetchError
 from fetch.robot import ACTION_STEP
 from fetch.tasks.subtasks import Frame, Scene, Subtask, Tracker
@@ -16,7 +17,7 @@ from fetch.tasks.subtasks import Frame, Scene, Subtask, Tracker
 
 @dataclasses.dataclass(frozen=True)
 class Segment:
-    """One subtask's part of a source demo: steps `start` to `end` (exclusive)."""
+    """One subtask's part of a source demo: the steps it replays, from `start` up to `end` (exclusive)."""
 
     demo: str
     start: int
@@ -34,10 +35,13 @@ class Segment:
     """the subtask's reference frame at the segment's start."""
     closest: int
     """the step whose target comes closest to the frame's origin (the grasp, the placement)."""
+    steps: np.ndarray | None = None
+    """(L,) the source demo's step each replayed step ends at (None: `start` to `end`, every one)."""
 
     @property
     def length(self) -> int:
-        return self.end - self.start
+        """Steps replayed (a tidied segment leaves some of `start`..`end` out)."""
+        return len(self.targets)
 
     def hand_in_frame(self) -> np.ndarray:
         """[m] `held` in the segment's frame: what nearest-neighbour selection compares."""
@@ -113,18 +117,74 @@ def annotate(base: Any, subtasks: tuple[Subtask, ...], states: np.ndarray) -> An
     return Annotation(labels, tracker.complete and frames[-1] is not None, held, frames)
 
 
-def segments_of(name: str, annotation: Annotation, actions: np.ndarray,
-                openings: np.ndarray | None = None) -> list[Segment]:
+def segments_of(name: str, annotation: Annotation, actions: np.ndarray, openings: np.ndarray | None = None,
+                changes: np.ndarray | None = None, tidy: bool = True) -> list[Segment]:
     """A complete demo's segments, one per subtask (see `annotate`); `openings` (T,) [m] is the fingers'
-    mean opening after each step."""
+    mean opening after each step, `changes` (T,) the largest change of any observation entry in each
+    step (`still_steps`). With `tidy`, each segment keeps only the steps that move the work on
+    (`tidy_steps`): what a person's pauses, hesitations and missed grasps add is left out."""
     out = []
     for k, (start, end) in enumerate(annotation.bounds()):
         frame = annotation.frames[k]
         assert frame is not None
-        held = annotation.held[start:end]
-        targets = held + ACTION_STEP * actions[start:end, :3].astype(np.float64)
+        grips = actions[start:end, 3].astype(np.float64)
+        fingers = None if openings is None else openings[start:end].astype(np.float64)
+        targets = annotation.held[start:end] + ACTION_STEP * actions[start:end, :3].astype(np.float64)
+        first, keep = 0, np.arange(end - start)
+        if tidy:
+            still = None if changes is None else still_steps(actions[start:end], changes[start:end])
+            first, keep = tidy_steps(targets, grips, fingers, still, frame, annotation.held[start:end])
+        first += start
+        targets, grips = targets[keep], grips[keep]
         closest = int(np.argmin(np.linalg.norm(targets - frame.pos, axis=1)))
-        out.append(Segment(name, start, end, annotation.held[start].copy(), targets,
-                           actions[start:end, 3].astype(np.float64),
-                           None if openings is None else openings[start:end].astype(np.float64), frame, closest))
+        out.append(Segment(name, first, end, annotation.held[first].copy(), targets, grips,
+                           None if fingers is None else fingers[keep], frame, closest, start + keep))
     return out
+
+
+TRANSIT = 0.8 * ACTION_STEP
+"""[m] the most a tidied segment moves its target in one step (the expert's free motion: `ACTION_STEP`)."""
+FINE = 0.01
+"""[m] near its reference a tidied step moves at most as far as its target is from the reference (as the
+expert's proportional approach does), but this far at least."""
+
+
+def tidy_steps(targets: np.ndarray, grips: np.ndarray, openings: np.ndarray | None, still: np.ndarray | None,
+               frame: Frame, held: np.ndarray) -> tuple[int, np.ndarray]:
+    """Where a segment's replay starts and the indices of the steps it replays, in order (`held` (L, 3)
+    [m]: the hand before each step). A segment that ends holding
+    something starts where the fingers last opened before its final grasp (a missed grasp and its
+    reopening are left out); steps that change nothing (`still`) are left out; and, away from the
+    slow steps are merged so that the target moves up to `TRANSIT` a step, and near the segment's
+    reference no farther than it is from it (`FINE` at least): a person's half-pushed stick and
+    careful corrections, replayed at the expert's pace. Steps whose finger command changes, or after
+    which the fingers still move, are kept as they are."""
+    n = len(targets)
+    squeeze = grips <= SQUEEZE
+    first = 0
+    if squeeze[-1]:
+        final = n - int(np.argmin(squeeze[::-1])) if not squeeze.all() else 0  # the final close
+        if final > 0 and squeeze[:final].any():
+            reopened = int(np.flatnonzero(squeeze[:final])[-1]) + 1
+            first = reopened
+            if openings is not None:  # from where the fingers are open again
+                wide = openings[reopened:final]
+                first = reopened + int(np.argmax(wide >= 0.9 * wide.max()))
+    order = np.arange(first, n)
+    if still is not None:
+        moving = order[~still[first:]]
+        order = moving if len(moving) else order[-1:]
+    fingers_move = np.zeros(n, bool)
+    if openings is not None:
+        fingers_move[1:] = np.abs(np.diff(openings)) >= STILL
+    timed = np.r_[False, np.abs(np.diff(grips)) > REGRIP] | fingers_move
+    reach = np.clip(np.linalg.norm(targets - frame.pos, axis=1), FINE, TRANSIT)
+    keep: list[int] = []
+    for i in order:
+        if keep and not timed[i] and not timed[keep[-1]] and i != order[-1] \
+                and np.linalg.norm(targets[i] - (targets[keep[-2]] if len(keep) > 1 else held[order[0]])) \
+                <= min(reach[i], reach[keep[-1]]):
+            keep[-1] = int(i)  # one step of the tidied segment goes from the one before to here
+        else:
+            keep.append(int(i))
+    return int(order[0]), np.asarray(keep, int)

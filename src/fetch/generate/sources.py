@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import math
 import os
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from fetch.dataset.habits import HORIZON_MARGIN, first_success, observation_changes
 from fetch.dataset.reader import open_dataset, require_valid
 from fetch.errors import FetchError
 from fetch.generate.segments import Segment, annotate, segments_of
@@ -29,6 +31,17 @@ class Sources:
     fingerprint: str
     """SHA-256 of the used demos' names, seeds, actions and states: a resumed run must use the same."""
 
+    took: tuple[int, ...] = ()
+    """per used demo, the steps its tidied segments replay before its first success."""
+
+    def attempt_steps(self, hold: int) -> int:
+        """[steps] how long an attempt may take: the task's registered horizon, or more where a source
+        demo's tidied segments take longer to succeed (times `HORIZON_MARGIN`, plus the `hold` steps
+        success must hold). People's demos are slower than the task's 50 steps; tidied, most fit in
+        them again."""
+        registered = int(gym.spec(self.env_id).max_episode_steps or 50)
+        return max(registered, math.ceil(HORIZON_MARGIN * max(self.took, default=0)) + hold)
+
 
 def load_sources(path: str | os.PathLike[str]) -> Sources:
     """Read a dataset and cut each successful demo into its task's subtasks."""
@@ -40,7 +53,7 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
         if not subtasks:
             raise FetchError(f"{ds.env_id} declares no subtasks (Task.subtasks), so it cannot be generated from")
         digest = hashlib.sha256()
-        segments, skipped = [], []
+        segments, skipped, took = [], [], []
         for name in ds.demo_names:
             attrs = ds.attrs(name)
             if not attrs.get("success"):
@@ -50,7 +63,11 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
             if not annotation.complete:
                 skipped.append(name)
                 continue
-            segments.append(tuple(segments_of(name, annotation, arrays["actions"], _openings(base, arrays))))
+            changes = observation_changes(arrays["obs/observation"], arrays["next_obs/observation"])
+            cut = segments_of(name, annotation, arrays["actions"], _openings(base, arrays), changes)
+            segments.append(tuple(cut))
+            done = first_success(arrays["is_success"]) or len(changes)
+            took.append(sum(int(np.sum(s.steps < done)) for s in cut if s.steps is not None))
             digest.update(f"{name}:{attrs['seed']}".encode())
             digest.update(arrays["actions"].tobytes())
             digest.update(arrays["states"].tobytes())
@@ -59,7 +76,7 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
             raise FetchError(f"{ds.path}: none of its {len(ds.demo_names)} demos is a success that can be cut into "
                              f"the subtasks of {ds.env_id} ({', '.join(s.name for s in subtasks)})")
         return Sources(str(ds.path.resolve()), ds.env_id, ds.env_kwargs, tuple(s.name for s in subtasks),
-                       tuple(segments), tuple(skipped), digest.hexdigest())
+                       tuple(segments), tuple(skipped), digest.hexdigest(), tuple(took))
 
 
 def _openings(base: Any, arrays: dict[str, np.ndarray]) -> np.ndarray | None:

@@ -14,6 +14,8 @@ VERSION = 1
 NAME = "checkpoint.pt"
 KEYS = ("format", "version", "policy", "train", "source", "step", "norm", "seeds", "model", "optimizer", "rng",
         "history")
+"""What every checkpoint holds; one may also hold `horizon` (the episode length its policy is given, [steps];
+a checkpoint without it is given its task's registered horizon)."""
 
 
 def path(run: str | os.PathLike[str]) -> pathlib.Path:

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
+from fetch.dataset.habits import HORIZON_MARGIN, first_success, observation_changes, still_steps
 from fetch.errors import DatasetError
 
 OBS_KEYS = ("observation", "desired_goal")
@@ -48,6 +50,8 @@ class Episode:
     actions: np.ndarray
     achieved: np.ndarray
     """(T, 3) the achieved goal of each step (for `policy_inputs` with goal offsets)."""
+    first_success: int | None = None
+    """[steps] how long the demo took to succeed, as recorded (None: it never did)."""
 
 
 def policy_inputs(episode: Episode, goal_offsets: bool) -> np.ndarray:
@@ -67,6 +71,27 @@ class Demos:
     valid: tuple[Episode, ...]
     seeds: frozenset[int]
     """Every reset seed in the dataset (all demos, kept failures too): evaluation avoids them."""
+
+    @property
+    def horizon(self) -> int:
+        """[steps] the episode length a policy learnt from these demos is given (`needed_horizon`)."""
+        return needed_horizon(self.env_id, self.train)
+
+
+def registered_horizon(env_id: str) -> int:
+    """[steps] the task's registered episode length (Fetch's 50)."""
+    import gymnasium as gym
+
+    return int(gym.spec(env_id).max_episode_steps or 50)
+
+
+def needed_horizon(env_id: str, episodes: Sequence[Episode]) -> int:
+    """[steps] the registered horizon, or more where the demos need it: `HORIZON_MARGIN` times the 95th
+    percentile of the steps they took to succeed. People are slower than the task's 50 steps; a policy
+    that learnt from them is judged on the time they took (and, by `eval`, on the 50 steps too)."""
+    took = [e.first_success for e in episodes if e.first_success is not None]
+    needed = math.ceil(HORIZON_MARGIN * float(np.percentile(took, 95))) if took else 0
+    return max(registered_horizon(env_id), needed)
 
 
 def load_demos(path: str | os.PathLike[str]) -> Demos:
@@ -110,9 +135,22 @@ def with_reflections(demos: Demos) -> Demos:
     def reflect(e: Episode) -> Episode:
         obs = np.concatenate([reflection.observation(e.obs[:, :size]), reflection.goal(e.obs[:, size:])], axis=1)
         return Episode(f"{e.name} (mirrored)", e.seed, obs.astype(np.float32), e.actions * sign,
-                       reflection.goal(e.achieved).astype(np.float32))
+                       reflection.goal(e.achieved).astype(np.float32), e.first_success)
 
     return dataclasses.replace(demos, train=demos.train + tuple(reflect(e) for e in demos.train))
+
+
+def learnt_steps(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+    """(T,) bool: the steps of a demo a policy learns from: all but those that change nothing before the
+    task is done (`habits.still_steps`: a person's pauses, the hand resting on a grasp already made).
+    In such a step the scene looks as in the one before and the action says "stay", so a policy that
+    learns it rests there for good (PickPlace: 6 % success from demos that rest 15 steps after the
+    grasp). Once the task is done, staying still is what the demo teaches, and is kept."""
+    still = still_steps(arrays["actions"], observation_changes(arrays["obs/observation"],
+                                                               arrays["next_obs/observation"]))
+    done = first_success(arrays["is_success"]) or len(still)
+    still[done:] = False
+    return ~still
 
 
 def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
@@ -126,10 +164,12 @@ def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
         if int(attrs["num_samples"]) == 0:
             continue
         arrays = ds.arrays(name)
+        keep = learnt_steps(arrays)
         obs = flat_obs({k: arrays[f"obs/{k}"] for k in OBS_KEYS})
         # A demo recorded under DART noise learns the expert's clean action, not the perturbed one it executed.
-        out.append(Episode(name, int(attrs["seed"]), obs, meant_actions(arrays),
-                           np.asarray(arrays["obs/achieved_goal"], np.float32)))
+        out.append(Episode(name, int(attrs["seed"]), obs[keep], meant_actions(arrays)[keep],
+                           np.asarray(arrays["obs/achieved_goal"], np.float32)[keep],
+                           first_success(arrays["is_success"])))
     return tuple(out)
 
 

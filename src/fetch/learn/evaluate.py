@@ -17,7 +17,8 @@ EVAL_SEED_START = 1_000_000
 """Evaluation seeds count up from here, skipping any seed of the dataset (collections start at 0)."""
 
 
-def make_vector_env(env_id: str, count: int, env_kwargs: dict[str, Any]) -> gym.vector.VectorEnv:
+def make_vector_env(env_id: str, count: int, env_kwargs: dict[str, Any],
+                    max_episode_steps: int | None = None) -> gym.vector.VectorEnv:
     """`count` copies of the env stepped as one batch, the one place evaluation builds its envs:
     `fetch.make_vec` (every world in this process, stepped on all cores' C threads) where mujoco has
     `mujoco.batch` (4.0 on); on older mujoco it could only step its worlds one after another, and
@@ -26,9 +27,12 @@ def make_vector_env(env_id: str, count: int, env_kwargs: dict[str, Any]) -> gym.
     import fetch
     from fetch.vector import has_batch
 
+    kwargs = dict(env_kwargs)
+    if max_episode_steps is not None:
+        kwargs["max_episode_steps"] = max_episode_steps
     if has_batch() and count > 1:
-        return fetch.make_vec(env_id, count, **env_kwargs)
-    return gym.vector.SyncVectorEnv([lambda: gym.make(env_id, **env_kwargs) for _ in range(count)])
+        return fetch.make_vec(env_id, count, **kwargs)
+    return gym.vector.SyncVectorEnv([lambda: gym.make(env_id, **kwargs) for _ in range(count)])
 
 
 def eval_seeds(count: int, exclude: Iterable[int], start: int = EVAL_SEED_START) -> list[int]:
@@ -55,8 +59,9 @@ def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
 
 @dataclasses.dataclass(frozen=True)
 class EvalResult:
-    """Per-episode outcomes: success at the last step of the horizon (the standard Fetch rate), success
-    at any step, and the first successful step (the horizon when never)."""
+    """Per-episode outcomes: success at the last step of the policy's horizon, success at the last step
+    of the task's registered horizon (the standard Fetch rate; the same when the two agree), success at
+    any step, and the first successful step (the horizon when never)."""
 
     env_id: str
     seeds: tuple[int, ...]
@@ -64,6 +69,13 @@ class EvalResult:
     ever: tuple[bool, ...]
     first_success: tuple[int, ...]
     horizon: int
+    registered: int
+    """[steps] the task's registered horizon."""
+    registered_success: tuple[bool, ...]
+
+    @property
+    def registered_rate(self) -> float:
+        return sum(self.registered_success) / max(1, self.episodes)
 
     @property
     def episodes(self) -> int:
@@ -84,8 +96,13 @@ class EvalResult:
 
     def describe(self) -> str:
         lo, hi = self.interval
+        registered = ""
+        if self.registered != self.horizon:
+            rlo, rhi = wilson(sum(self.registered_success), self.episodes)
+            registered = (f" (the policy's horizon, from its demos); at the registered step {self.registered}: "
+                          f"{100 * self.registered_rate:.1f}% (95% CI {100 * rlo:.1f}-{100 * rhi:.1f}%)")
         return (f"{self.env_id}: success {100 * self.rate:.1f}% ({sum(self.success)}/{self.episodes}, 95% CI "
-                f"{100 * lo:.1f}-{100 * hi:.1f}%) at step {self.horizon}; succeeded at some step "
+                f"{100 * lo:.1f}-{100 * hi:.1f}%) at step {self.horizon}{registered}; succeeded at some step "
                 f"{100 * sum(self.ever) / max(1, self.episodes):.1f}%; mean episode length {self.mean_length:.1f} "
                 f"steps (to first success, {self.horizon} if never); seeds {self.seeds[0]}..{self.seeds[-1]} "
                 "(none from the dataset)")
@@ -94,24 +111,28 @@ class EvalResult:
         lo, hi = self.interval
         return {"env_id": self.env_id, "episodes": self.episodes, "success_rate": self.rate, "ci95": [lo, hi],
                 "ever_success_rate": sum(self.ever) / max(1, self.episodes), "mean_length": self.mean_length,
-                "horizon": self.horizon, "seeds": list(self.seeds), "success": list(self.success)}
+                "horizon": self.horizon, "registered_horizon": self.registered,
+                "registered_success_rate": self.registered_rate, "seeds": list(self.seeds),
+                "success": list(self.success)}
 
 
 def evaluate(policy: Any, episodes: int, *, envs: int = 50, seed_start: int = EVAL_SEED_START,
              on_wave: Callable[[int], None] | None = None) -> EvalResult:
-    """Run `policy` (a `Policy`) for `episodes` episodes of its task's registered horizon, `envs` at a
-    time, on seeds disjoint from its dataset's."""
+    """Run `policy` (a `Policy`) for `episodes` episodes of its horizon (`policy.horizon`, at least the
+    task's registered one), `envs` at a time, on seeds disjoint from its dataset's."""
     if episodes < 1:
         raise FetchError(f"--episodes must be a whole number >= 1, got {episodes}")
     if envs < 1:
         raise FetchError(f"--envs must be a whole number >= 1, got {envs}")
-    horizon = int(gym.spec(policy.env_id).max_episode_steps or 50)
+    registered = int(gym.spec(policy.env_id).max_episode_steps or 50)
+    horizon = max(registered, int(getattr(policy, "horizon", registered)))
     seeds = eval_seeds(episodes, policy.seeds, seed_start)
     count = min(envs, episodes)
     success: list[bool] = []
+    at_registered: list[bool] = []
     ever: list[bool] = []
     first: list[int] = []
-    vec = make_vector_env(policy.env_id, count, policy.env_kwargs)
+    vec = make_vector_env(policy.env_id, count, policy.env_kwargs, horizon)
     try:
         for wave in range(0, episodes, count):
             wave_seeds = seeds[wave:wave + count]
@@ -122,19 +143,24 @@ def evaluate(policy: Any, episodes: int, *, envs: int = 50, seed_start: int = EV
             policy.reset()
             reached = np.full(count, horizon)
             last = np.zeros(count, bool)
+            registered_last = last
             for t in range(horizon):
                 obs, _, _, _, info = vec.step(policy(obs))
                 last = np.asarray(info["is_success"], float) > 0
                 reached = np.where(last & (reached == horizon), t + 1, reached)
+                if t + 1 == registered:
+                    registered_last = last
             n = len(wave_seeds)
             success += [bool(s) for s in last[:n]]
+            at_registered += [bool(s) for s in registered_last[:n]]
             ever += [bool(r < horizon or s) for r, s in zip(reached[:n], last[:n], strict=True)]
             first += [int(r) for r in reached[:n]]
             if on_wave is not None:
                 on_wave(len(success))
     finally:
         vec.close()
-    return EvalResult(policy.env_id, tuple(seeds), tuple(success), tuple(ever), tuple(first), horizon)
+    return EvalResult(policy.env_id, tuple(seeds), tuple(success), tuple(ever), tuple(first), horizon, registered,
+                      tuple(at_registered))
 
 
 def record_videos(policy: Any, seeds: list[int], out_dir: str | pathlib.Path, *, camera: str = "front",
@@ -148,7 +174,7 @@ def record_videos(policy: Any, seeds: list[int], out_dir: str | pathlib.Path, *,
     env: Any = gym.make(policy.env_id, render_mode="rgb_array", width=size, height=size, camera_name=camera,
                         **policy.env_kwargs)
     try:
-        horizon = int(env.spec.max_episode_steps or 50) if env.spec else 50
+        horizon = int(getattr(policy, "horizon", None) or (env.spec.max_episode_steps if env.spec else 50) or 50)
         for seed in seeds:
             path = check_video_path(out / f"{policy.env_id}_seed{seed}.mp4", size, size)
             obs, _ = env.reset(seed=seed)

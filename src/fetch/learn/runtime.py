@@ -12,7 +12,7 @@ import torch
 
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
-from fetch.learn.data import Normalizer, flat_obs
+from fetch.learn.data import Normalizer, flat_obs, registered_horizon
 from fetch.learn.policies import Members, PolicyConfig, RecurrentPolicy, build
 
 
@@ -25,7 +25,7 @@ class Policy:
     """
 
     def __init__(self, config: PolicyConfig, model: torch.nn.Module, normalizer: Normalizer, env_id: str,
-                 env_kwargs: dict[str, Any], seeds: frozenset[int], step: int) -> None:
+                 env_kwargs: dict[str, Any], seeds: frozenset[int], step: int, horizon: int | None = None) -> None:
         self.config = config
         self.model = model.eval()
         self.normalizer = normalizer
@@ -34,6 +34,9 @@ class Policy:
         self.seeds = seeds
         """The reset seeds of the dataset it learnt from: evaluation uses others."""
         self.trained_steps = step
+        self.horizon = horizon if horizon is not None else registered_horizon(env_id)
+        """[steps] the episode length this policy is given: its task's registered horizon, or more where
+        the demos it learnt from took longer (`fetch.learn.data.needed_horizon`)."""
         self.reset()
 
     def reset(self) -> None:
@@ -88,5 +91,6 @@ def load(run: str | os.PathLike[str]) -> Policy:
     norm = Normalizer(state["norm"]["mean"].numpy(), state["norm"]["std"].numpy())
     source = state["source"]
     seeds = frozenset(int(s) for s in state["seeds"].tolist())
+    horizon = state.get("horizon")
     return Policy(config, model, norm, str(source["env_id"]), json.loads(source["env_kwargs"]), seeds,
-                  int(state["step"]))
+                  int(state["step"]), None if horizon is None else int(horizon))

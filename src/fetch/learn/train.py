@@ -117,6 +117,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     source = {"dataset": demos.origin, "env_id": demos.env_id,
               "env_kwargs": json.dumps(demos.env_kwargs, sort_keys=True),
               "train_demos": [e.name for e in demos.train]}
+    horizon = demos.horizon
     if config.mirror:
         demos = with_reflections(demos)
     offsets = bool(policy.get("goal_offsets", False))
@@ -156,7 +157,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
                  "norm": {"mean": torch.from_numpy(norm.mean), "std": torch.from_numpy(norm.std)},
                  "seeds": torch.tensor(sorted(demos.seeds), dtype=torch.int64),
                  "model": model.state_dict(), "optimizer": optimizer.state_dict(), "rng": torch.get_rng_state(),
-                 "history": history}
+                 "history": history, "horizon": horizon}
         buffer = io.BytesIO()
         torch.save(state, buffer)
         ckpt.write(run, buffer.getvalue())
