@@ -29,11 +29,12 @@ import mujoco
 HERE = pathlib.Path(__file__).resolve().parent
 
 
-def teleop(env_id: str, out: pathlib.Path, demos: int, noise: float) -> tuple[float, float]:
+def teleop(env_id: str, out: pathlib.Path, demos: int, style: str, seed: int = 0) -> tuple[float, float]:
     """([s] wall time, [s] what a person at 25 Hz would have spent steering)."""
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     sys.path.insert(0, str(HERE.parent / "tests"))
     import fetch  # noqa: F401
+    import operators
     import vpad
     from fetch.experts import make_expert
     from fetch.teleop.gamepad import GamepadDevice
@@ -42,9 +43,9 @@ def teleop(env_id: str, out: pathlib.Path, demos: int, noise: float) -> tuple[fl
     vpad.init_headless()
     pad = vpad.VirtualPad()
     config = CollectConfig(env_id=env_id, out=str(out), episodes=demos, device="gamepad", render="none",
-                           control_hz=0, max_steps=150)
+                           control_hz=0, max_steps=400, seed=seed)
     env = make_env(config)
-    operator = vpad.ExpertOnPad(pad, GamepadDevice(), make_expert(env), noise=noise)
+    operator = operators.Operator(pad, GamepadDevice(), make_expert(env), operators.STYLES[style], seed=seed)
     start = time.perf_counter()
     summary = Session(config, operator, env=env, log=lambda text: None).run()
     steps = sum(a.steps for a in summary.attempts)
@@ -63,14 +64,16 @@ def main() -> None:
     parser.add_argument("--env", default="PickPlace-v2")
     parser.add_argument("--demos", type=int, default=10)
     parser.add_argument("--generated", type=int, default=1000)
-    parser.add_argument("--noise", type=float, default=0.1)
+    parser.add_argument("--style", default="standin",
+                        help="the stand-in operator's way of driving (tests/operators.py STYLES; default standin)")
+    parser.add_argument("--seed", type=int, default=0, help="the collection's first reset seed and the operator's")
     parser.add_argument("--generate-noise", type=float, default=None,
                         help="gym-fetch generate --noise (default: generate's own default)")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--dir", default="/tmp/mission")
     args = parser.parse_args()
-    root = pathlib.Path(args.dir) / args.env
+    root = pathlib.Path(args.dir) / args.env / args.style
     root.mkdir(parents=True, exist_ok=True)
     timing_file = root / "timing.json"
     timing = json.loads(timing_file.read_text()) if timing_file.exists() else {}
@@ -78,7 +81,7 @@ def main() -> None:
     print(f"{platform.node()}: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}, mujoco {mujoco.__version__}; "
           f"{args.env}, {args.demos} pad demos -> {args.generated} generated -> train -> eval {args.episodes}")
     if "teleop" not in timing:
-        timing["teleop"], timing["person"] = teleop(args.env, human, args.demos, args.noise)
+        timing["teleop"], timing["person"] = teleop(args.env, human, args.demos, args.style, args.seed)
         timing_file.write_text(json.dumps(timing))
     if "generate" not in timing:
         noise = [] if args.generate_noise is None else ["--noise", str(args.generate_noise)]
