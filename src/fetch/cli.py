@@ -79,6 +79,7 @@ def run_collect(args: argparse.Namespace) -> int:
 
 def run_info(args: argparse.Namespace) -> int:
     from fetch.dataset import open_dataset, summarize, validate
+    from fetch.dataset.habits import dataset_flags, describe_flags
     from fetch.dataset.npz import npz_files
 
     if files := npz_files(args.file):
@@ -97,6 +98,8 @@ def run_info(args: argparse.Namespace) -> int:
         print(f"  cameras     {', '.join(s.cameras) or 'none'}")
         print(f"  settings    {ds.settings}")
         print("  versions    " + ", ".join(f"{k} {v}" for k, v in s.versions.items()))
+        for line in describe_flags(dataset_flags(ds), s.demos):
+            print(line if line.startswith("  ") else "  " + line)
         problems = validate(ds)
     return _verdict(problems)
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from fetch.dataset.habits import FLAG_KINDS, dataset_flags
 from fetch.dataset.reader import READ_ERRORS, Dataset, open_dataset, validate
 from fetch.errors import DatasetError, FetchError
 
@@ -133,6 +134,7 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
         names = list(ds.demo_names)
         problems = demo_problems(validate(ds), names)
         rows = [_row(ds, name, problems.get(name, [])) for name in names]
+        flagged = dataset_flags(ds)
         with replacing_dir(pathlib.Path(out), force) as root:
             (root / "videos").mkdir()
             (root / "data").mkdir()
@@ -141,7 +143,8 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
             entries = []
             frames = _frames(ds, [r.name for r in rows if r.readable], camera, size, workers or default_workers())
             for row in progress(rows, len(rows), "view"):
-                entry = {**dataclasses.asdict(row), "video": None, "data": None}
+                entry = {**dataclasses.asdict(row), "video": None, "data": None,
+                         "flags": [f.as_dict() for f in flagged.get(row.name, [])]}
                 if row.readable:
                     images = next(frames)
                     if images is not None:
@@ -156,7 +159,8 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
                         (root / "data" / f"{row.name}.js").write_text(data_script(row.name, data))
                         entry["data"] = f"data/{row.name}.js"
                 entries.append(entry)
-            summary = {"env_id": ds.env_id, "path": str(ds.path), "camera": camera, "fps": fps, "demos": entries}
+            summary = {"env_id": ds.env_id, "path": str(ds.path), "camera": camera, "fps": fps, "demos": entries,
+                       "flag_kinds": FLAG_KINDS}
             (root / "index.html").write_text(page(summary, f"{ds.env_id}: {ds.path}"))
     return ViewReport(pathlib.Path(out), len(rows), videos, sum(not r.valid for r in rows))
 

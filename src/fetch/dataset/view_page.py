@@ -36,6 +36,7 @@ _PAGE = r"""<!DOCTYPE html>
   #detail-video { width: 256px; height: 256px; background: #000; }
   svg text { font: 10px system-ui, sans-serif; fill: #444; }
   .problem { color: #c62828; }
+  .flags, td.flags { color: #a15c00; }
 </style>
 </head>
 <body>
@@ -44,11 +45,12 @@ _PAGE = r"""<!DOCTYPE html>
 <div id="summary-plots"></div>
 <div id="layout">
   <div id="table-wrap"><table id="demos"><thead><tr>
-    <th>video</th><th>demo</th><th>length</th><th>seed</th><th>device</th><th>session</th><th>success</th><th>valid</th>
+    <th>video</th><th>demo</th><th>length</th><th>seed</th><th>device</th><th>session</th><th>success</th><th>valid</th><th>flags</th>
   </tr></thead><tbody></tbody></table></div>
   <div id="detail">
     <h2 id="detail-title">select a demo</h2>
     <div id="detail-problem" class="problem"></div>
+    <ul id="detail-flags" class="flags"></ul>
     <video id="detail-video" autoplay muted loop playsinline controls></video>
     <div id="plots"></div>
   </div>
@@ -85,7 +87,8 @@ window.FetchView = (() => {
   }
 
   // A line plot of several series over steps; labels name the series.
-  function linePlot(title, series, labels) {
+  // `marks`: [start, end) step ranges shaded behind the lines (the demo's flags).
+  function linePlot(title, series, labels, marks) {
     const W = 280, H = 130, L = 48, R = 6, T = 16, B = 18;
     const root = svg("svg", { width: W, height: H, class: "plot", "data-title": title });
     let lo = Infinity, hi = -Infinity, n = 0;
@@ -98,6 +101,10 @@ window.FetchView = (() => {
     const x = (i) => L + (W - L - R) * (n > 1 ? i / (n - 1) : 0.5);
     const y = (v) => T + (H - T - B) * (1 - (v - lo) / (hi - lo));
     root.append(svg("rect", { x: L, y: T, width: W - L - R, height: H - T - B, fill: "#fff", stroke: "#ccc" }));
+    for (const [a, b] of marks || []) {
+      root.append(svg("rect", { x: x(a), y: T, width: Math.max(1, x(b - 1) - x(a)), height: H - T - B,
+                                fill: "#ffe0b2", class: "flagged" }));
+    }
     root.append(text(4, 11, title));
     root.append(text(L - 3, T + 8, fmt(hi), "end"), text(L - 3, H - B, fmt(lo), "end"));
     root.append(text(L, H - 4, "step 0"), text(W - R, H - 4, String(n - 1), "end"));
@@ -169,6 +176,13 @@ window.FetchView = (() => {
     return td;
   }
 
+  // What the demo holds that is known to hurt learning (fetch.dataset.habits): kinds in the row, texts in its title.
+  function flagsCell(flags) {
+    const td = el("td", { class: "flags" }, flags.map((f) => f.kind).join(", "));
+    td.title = flags.map((f) => f.text).join("\n");
+    return td;
+  }
+
   function buildTable() {
     const body = document.querySelector("#demos tbody");
     for (const d of summary.demos) {
@@ -177,7 +191,7 @@ window.FetchView = (() => {
       if (d.video) { video.dataset.src = d.video; watcher.observe(video); }
       const row = el("tr", { class: "demo", id: "row-" + d.name, "data-demo": d.name },
         el("td", {}, video), cell(d.name, "name"), cell(d.length), cell(d.seed), cell(d.device, "device"),
-        cell(d.session, "session"), flag(d.success), flag(d.valid, d.problem));
+        cell(d.session, "session"), flag(d.success), flag(d.valid, d.problem), flagsCell(d.flags));
       row.addEventListener("click", () => select(d.name));
       body.append(row);
     }
@@ -192,6 +206,8 @@ window.FetchView = (() => {
     document.getElementById("detail-title").textContent = name + ": " + d.length + " steps, seed " + d.seed +
       ", " + d.device + (d.success ? ", successful" : ", failed");
     document.getElementById("detail-problem").textContent = d.problem || "";
+    document.getElementById("detail-flags").replaceChildren(...d.flags.map((f) =>
+      el("li", { title: summary.flag_kinds[f.kind] }, f.text)));
     const video = document.getElementById("detail-video");
     if (d.video) { video.src = d.video; video.play().catch(() => {}); } else { video.removeAttribute("src"); }
     if (state.cache[name]) { draw(name); return; }
@@ -206,7 +222,8 @@ window.FetchView = (() => {
 
   function draw(name) {
     const data = state.cache[name];
-    const plots = [linePlot("action", data.actions, ["x", "y", "z", "grip"]),
+    const marks = summary.demos.find((x) => x.name === name).flags.flatMap((f) => f.where);
+    const plots = [linePlot("action", data.actions, ["x", "y", "z", "grip"], marks),
                    linePlot("reward, is_success", [data.reward, data.success], ["reward", "success"])];
     for (const [part, values] of Object.entries(data.obs)) {
       const labels = values.length === 3 ? ["x", "y", "z"] : values.length > 1 ? values.map((_, i) => String(i)) : null;
