@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from fetch.dataset.reader import READ_ERRORS
 from fetch.errors import DatasetError
 
 IDLE_ACTION = 0.05
@@ -125,22 +126,21 @@ def demo_flags(arrays: Mapping[str, np.ndarray], median_length: float | None = N
 
 def dataset_flags(ds: Any) -> dict[str, list[Flag]]:
     """The flags of every readable demo of a dataset (`reader.Dataset`) that has any, by demo name."""
-    from fetch.dataset.reader import READ_ERRORS
-
+    unreadable: tuple[type[Exception], ...] = (DatasetError, *READ_ERRORS)
     lengths = []
     for name in ds.demo_names:
         try:
             attrs = ds.attrs(name)
             if attrs.get("success"):
                 lengths.append(int(attrs["num_samples"]))
-        except (DatasetError, *READ_ERRORS, KeyError, TypeError, ValueError):
+        except unreadable:
             continue
     median = float(np.median(lengths)) if lengths else None
     out: dict[str, list[Flag]] = {}
     for name in ds.demo_names:
         try:
             flags = demo_flags(ds.arrays(name), median)
-        except (DatasetError, *READ_ERRORS, KeyError, TypeError, ValueError):
+        except unreadable:
             continue  # `validate` says what is wrong with it
         if flags:
             out[name] = flags
