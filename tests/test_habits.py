@@ -125,3 +125,28 @@ def test_info_flags_what_a_persons_demos_hold(pad, tmp_path: pathlib.Path, capsy
     out = capsys.readouterr().out
     assert "habits      3 of 3 demos flagged" in out and "idle:" in out
     assert "demo_0: idle" in out and out.strip().endswith("valid")
+
+
+def test_view_shows_the_flags_on_the_row_and_the_plot_in_chromium(pad, tmp_path: pathlib.Path) -> None:  # noqa: ANN001
+    pytest.importorskip("av")
+    import cdp
+
+    human = operators.record(pad, "PickPlace-v2", "pauses", tmp_path / "human", 2, seed=1)
+    page = tmp_path / "page"
+    assert main(["view", str(human), "--out", str(page), "--size", "32"]) == 0
+    chromium = cdp.find_chromium()
+    if chromium is None:
+        pytest.skip("no Chromium (apt-get install chromium): the page is not tested in a browser")
+    profile = tmp_path / "profile"
+    profile.mkdir()
+    browser = cdp.Browser(chromium, str(profile))
+    try:
+        browser.navigate((page / "index.html").resolve().as_uri())
+        assert browser.wait_for("window.FetchView && FetchView.state.plotted") == "demo_0"
+        cells = browser.evaluate("[...document.querySelectorAll('td.flags')].map(td => [td.textContent, td.title])")
+        assert len(cells) == 2 and all("idle" in kinds and "idle" in title for kinds, title in cells)
+        assert browser.evaluate("document.querySelectorAll('#detail-flags li').length") >= 1
+        assert browser.evaluate("document.querySelectorAll('#plots svg rect.flagged').length") >= 1
+        assert browser.errors() == [] and browser.evaluate("FetchView.state.errors") == []
+    finally:
+        browser.close()
