@@ -126,7 +126,7 @@ def demo_flags(arrays: Mapping[str, np.ndarray], median_length: float | None = N
 
 def dataset_flags(ds: Any) -> dict[str, list[Flag]]:
     """The flags of every readable demo of a dataset (`reader.Dataset`) that has any, by demo name."""
-    unreadable: tuple[type[Exception], ...] = (DatasetError, *READ_ERRORS)
+    unreadable: tuple[type[Exception], ...] = (DatasetError, IndexError, *READ_ERRORS)  # malformed: `validate` says
     lengths = []
     for name in ds.demo_names:
         try:
