@@ -1,11 +1,12 @@
 """The measure of the whole tool: ten demonstrations with a pad, then a policy that solves the task.
 
-    .venv-train/bin/python benchmarks/mission.py [--env PickPlace-v2] [--demos 10] [--generated 1000]
-        [--noise 0.1] [--generate-noise STD] [--workers 2] [--dir /tmp/mission]
+    .venv-train/bin/python benchmarks/mission.py [--env PickPlace-v2] [--style standin] [--demos 10]
+        [--generated 1000] [--generate-noise STD] [--workers 2] [--dir /tmp/mission]
 
 1. teleop: 10 demos through the real gamepad path (SDL's virtual pad, the real `GamepadDevice` and
-   collector), driven by a stand-in for a person (`tests/vpad.ExpertOnPad`: the expert's intent,
-   a shaky hand of `--noise`, precision mode for small moves, X to toggle the gripper);
+   collector), driven by a stand-in for a person of `--style` (`tests/operators.py`: the expert's
+   intent, carried out with that style's habits: pace, pauses, a missed grasp, gripper habits,
+   approach paths; docs/operators.md);
 2. `gym-fetch generate` multiplies them into `--generated` demos;
 3. `gym-fetch train` with its defaults;
 4. `gym-fetch eval --episodes 100` on seeds disjoint from the data's.
@@ -104,8 +105,14 @@ def main() -> None:
         print(f"| {stage} | {timing[stage]:.0f} s |")
     print(f"| generate + train + eval | {compute / 60:.1f} min |")
     lo, hi = outcome["ci95"]
-    print(f"\nsuccess {100 * outcome['success_rate']:.0f} % (95 % interval {100 * lo:.0f}-{100 * hi:.0f} %) over "
-          f"{outcome['episodes']} episodes, mean length {outcome['mean_length']:.1f}; "
+    horizon = outcome.get("horizon", 50)
+    registered = outcome.get("registered_horizon", horizon)
+    at_registered = (f", at the registered {registered} steps {100 * outcome['registered_success_rate']:.0f} %"
+                     if registered != horizon else "")
+    print(f"\n{args.style} on {args.env}: success {100 * outcome['success_rate']:.0f} % (95 % interval "
+          f"{100 * lo:.0f}-{100 * hi:.0f} %) over {outcome['episodes']} episodes at the policy's horizon of {horizon} "
+          f"steps{at_registered}; mean length {outcome['mean_length']:.1f} (the pad demos: "
+          f"{timing['person'] / 0.04 / args.demos:.1f}); "
           f"bar (>= 90 % within 30 min): {'met' if outcome['success_rate'] >= 0.9 and compute <= 1800 else 'NOT met'}")
 
 
