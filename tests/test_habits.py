@@ -97,16 +97,20 @@ def test_a_rest_after_the_grasp_is_neither_generated_nor_learnt(pad, tmp_path: p
     """The stall a person's habit caused (a policy that learnt to rest holding the block: 6 % on
     PickPlace): demos that rest 12-17 steps after the grasp. Neither the generated demos nor what
     training reads from the person's own demos hold such a rest."""
+    from fetch.dataset.habits import layout_of, pose_columns
     from fetch.learn.data import learnt_steps
 
+    layout = layout_of("PickPlace-v2")
     human = operators.record(pad, "PickPlace-v2", "rests", tmp_path / "human", 4, seed=3)
     with open_dataset(human) as ds:
         for name in ds.demo_names:
             arrays = ds.arrays(name)
-            rests = [b - a for a, b in runs(still_steps(arrays["actions"], observation_changes(
-                arrays["obs/observation"], arrays["next_obs/observation"]))[:first_success(arrays["is_success"])])]
+            columns = pose_columns(layout, arrays["obs/observation"].shape[1])
+            changes = observation_changes(arrays["obs/observation"], arrays["next_obs/observation"], columns)
+            still = still_steps(arrays["actions"], changes)[:first_success(arrays["is_success"])]
+            rests = [b - a for a, b in runs(still)]
             assert max(rests) >= 7, "the stand-in rests (12-17 ticks hands off, the fingers closing in the first)"
-            keep = learnt_steps(arrays)
+            keep = learnt_steps(arrays, layout)
             assert len(keep) - keep.sum() >= max(rests), "training leaves the rest out"
     out = tmp_path / "generated"
     assert main(["generate", "--source", str(human), "--out", str(out), "--demos", "6", "--workers", "1"]) == 0

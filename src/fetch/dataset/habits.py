@@ -43,9 +43,35 @@ def still_steps(actions: np.ndarray, changes: np.ndarray) -> np.ndarray:
     return ~asked & ~regrip & (np.asarray(changes) < STILL)
 
 
-def observation_changes(obs: np.ndarray, next_obs: np.ndarray) -> np.ndarray:
-    """(T,) the largest change of any observation entry over each step."""
-    return np.abs(np.asarray(next_obs, np.float64) - np.asarray(obs, np.float64)).max(axis=1)
+def pose_columns(layout: Mapping[str, slice] | None, size: int) -> np.ndarray:
+    """The observation's entries that say where things are (every part but the velocities: `*vel*`), of
+    `size` entries in all; all of them without a layout. A velocity's change is no motion: a block
+    held in soft fingers (v4's contacts, mujoco 3.3) spins back and forth at a few mrad a step."""
+    if layout is None:
+        return np.arange(size)
+    return np.array([i for name, part in layout.items() if "vel" not in name
+                     for i in range(*part.indices(size))], dtype=int)
+
+
+def observation_changes(obs: np.ndarray, next_obs: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
+    """(T,) the largest change over each step of the observation's `columns` (all where None; see
+    `pose_columns`)."""
+    change = np.abs(np.asarray(next_obs, np.float64) - np.asarray(obs, np.float64))
+    return (change if columns is None else change[:, columns]).max(axis=1)
+
+
+def layout_of(env_id: str) -> dict[str, slice] | None:
+    """The observation layout of a registered id (None: not one of ours, or it cannot be made)."""
+    import gymnasium as gym
+
+    try:
+        env = gym.make(env_id)
+    except Exception:  # an unknown or broken id: the flags then read every entry
+        return None
+    try:
+        return dict(env.unwrapped.observation_layout)  # type: ignore[attr-defined]
+    finally:
+        env.close()
 
 
 def first_success(is_success: np.ndarray) -> int | None:
@@ -90,8 +116,10 @@ def _where(ranges: Sequence[tuple[int, int]]) -> str:
     return ", ".join(f"{a}-{b - 1}" if b - a > 1 else f"{a}" for a, b in ranges)
 
 
-def demo_flags(arrays: Mapping[str, np.ndarray], median_length: float | None = None) -> list[Flag]:
-    """The flags of one demo (its arrays as the reader gives them: actions, obs, next_obs, is_success)."""
+def demo_flags(arrays: Mapping[str, np.ndarray], median_length: float | None = None,
+               layout: Mapping[str, slice] | None = None) -> list[Flag]:
+    """The flags of one demo (its arrays as the reader gives them: actions, obs, next_obs, is_success;
+    `layout`: the observation's, for `pose_columns`)."""
     actions = np.asarray(arrays["actions"], np.float64)
     steps = len(actions)
     if steps == 0:
@@ -99,7 +127,9 @@ def demo_flags(arrays: Mapping[str, np.ndarray], median_length: float | None = N
     success = np.asarray(arrays["is_success"]) > 0
     done = first_success(success) or steps
     flags: list[Flag] = []
-    still = still_steps(actions, observation_changes(arrays["obs/observation"], arrays["next_obs/observation"]))
+    obs = np.asarray(arrays["obs/observation"])
+    columns = pose_columns(layout, obs.shape[1])
+    still = still_steps(actions, observation_changes(obs, arrays["next_obs/observation"], columns))
     idle = [(a, b) for a, b in runs(still[:done]) if b - a >= IDLE_FLAG]
     if idle:
         total = sum(b - a for a, b in idle)
@@ -136,10 +166,11 @@ def dataset_flags(ds: Any) -> dict[str, list[Flag]]:
         except unreadable:
             continue
     median = float(np.median(lengths)) if lengths else None
+    layout = layout_of(str(ds.env_id))
     out: dict[str, list[Flag]] = {}
     for name in ds.demo_names:
         try:
-            flags = demo_flags(ds.arrays(name), median)
+            flags = demo_flags(ds.arrays(name), median, layout)
         except unreadable:
             continue  # `validate` says what is wrong with it
         if flags:

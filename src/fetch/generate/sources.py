@@ -11,7 +11,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fetch.dataset.habits import HORIZON_MARGIN, first_success, observation_changes
+from fetch.dataset.habits import HORIZON_MARGIN, first_success, observation_changes, pose_columns
 from fetch.dataset.reader import open_dataset, require_valid
 from fetch.errors import FetchError
 from fetch.generate.segments import Segment, annotate, segments_of
@@ -53,6 +53,7 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
         if not subtasks:
             raise FetchError(f"{ds.env_id} declares no subtasks (Task.subtasks), so it cannot be generated from")
         digest = hashlib.sha256()
+        columns = pose_columns(base.observation_layout, base.observation_space["observation"].shape[0])
         segments, skipped, took = [], [], []
         for name in ds.demo_names:
             attrs = ds.attrs(name)
@@ -63,7 +64,7 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
             if not annotation.complete:
                 skipped.append(name)
                 continue
-            changes = observation_changes(arrays["obs/observation"], arrays["next_obs/observation"])
+            changes = observation_changes(arrays["obs/observation"], arrays["next_obs/observation"], columns)
             cut = segments_of(name, annotation, arrays["actions"], _openings(base, arrays), changes)
             segments.append(tuple(cut))
             done = first_success(arrays["is_success"]) or len(changes)

@@ -10,7 +10,14 @@ from typing import Any
 
 import numpy as np
 
-from fetch.dataset.habits import HORIZON_MARGIN, first_success, observation_changes, still_steps
+from fetch.dataset.habits import (
+    HORIZON_MARGIN,
+    first_success,
+    layout_of,
+    observation_changes,
+    pose_columns,
+    still_steps,
+)
 from fetch.errors import DatasetError
 
 OBS_KEYS = ("observation", "desired_goal")
@@ -140,14 +147,16 @@ def with_reflections(demos: Demos) -> Demos:
     return dataclasses.replace(demos, train=demos.train + tuple(reflect(e) for e in demos.train))
 
 
-def learnt_steps(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+def learnt_steps(arrays: Mapping[str, np.ndarray], layout: Mapping[str, slice] | None = None) -> np.ndarray:
     """(T,) bool: the steps of a demo a policy learns from: all but those that change nothing before the
     task is done (`habits.still_steps`: a person's pauses, the hand resting on a grasp already made).
     In such a step the scene looks as in the one before and the action says "stay", so a policy that
     learns it rests there for good (PickPlace: 6 % success from demos that rest 15 steps after the
-    grasp). Once the task is done, staying still is what the demo teaches, and is kept."""
-    still = still_steps(arrays["actions"], observation_changes(arrays["obs/observation"],
-                                                               arrays["next_obs/observation"]))
+    grasp). Once the task is done, staying still is what the demo teaches, and is kept. `layout`: the
+    observation's (`habits.pose_columns`)."""
+    obs = np.asarray(arrays["obs/observation"])
+    columns = pose_columns(layout, obs.shape[1])
+    still = still_steps(arrays["actions"], observation_changes(obs, arrays["next_obs/observation"], columns))
     done = first_success(arrays["is_success"]) or len(still)
     still[done:] = False
     return ~still
@@ -159,12 +168,13 @@ def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
 
     assert isinstance(ds, Dataset)
     out = []
+    layout = layout_of(ds.env_id)
     for name in names:
         attrs = ds.attrs(name)
         if int(attrs["num_samples"]) == 0:
             continue
         arrays = ds.arrays(name)
-        keep = learnt_steps(arrays)
+        keep = learnt_steps(arrays, layout)
         obs = flat_obs({k: arrays[f"obs/{k}"] for k in OBS_KEYS})
         # A demo recorded under DART noise learns the expert's clean action, not the perturbed one it executed.
         out.append(Episode(name, int(attrs["seed"]), obs[keep], meant_actions(arrays)[keep],
