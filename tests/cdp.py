@@ -11,6 +11,8 @@ import shutil
 import subprocess
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -154,3 +156,22 @@ class Browser:
             self.proc.kill()
             self.proc.wait()
         os.close(self._to_browser)
+
+
+@contextmanager
+def open_page(page: Any, tmp_path: Any) -> Iterator[Browser]:
+    """A headless Chromium showing the file `page` (a path), with its profile under `tmp_path`; the
+    test is skipped where no Chromium is installed. Closed on leaving."""
+    import pytest
+
+    chromium = find_chromium()
+    if chromium is None:
+        pytest.skip("no Chromium (apt-get install chromium): the page is not tested in a browser")
+    profile = tmp_path / "profile"
+    profile.mkdir()
+    browser = Browser(chromium, str(profile))
+    try:
+        browser.navigate(page.resolve().as_uri())
+        yield browser
+    finally:
+        browser.close()

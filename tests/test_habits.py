@@ -138,19 +138,10 @@ def test_view_shows_the_flags_on_the_row_and_the_plot_in_chromium(pad, tmp_path:
     human = operators.record(pad, "PickPlace-v2", "pauses", tmp_path / "human", 2, seed=1)
     page = tmp_path / "page"
     assert main(["view", str(human), "--out", str(page), "--size", "32"]) == 0
-    chromium = cdp.find_chromium()
-    if chromium is None:
-        pytest.skip("no Chromium (apt-get install chromium): the page is not tested in a browser")
-    profile = tmp_path / "profile"
-    profile.mkdir()
-    browser = cdp.Browser(chromium, str(profile))
-    try:
-        browser.navigate((page / "index.html").resolve().as_uri())
+    with cdp.open_page(page / "index.html", tmp_path) as browser:
         assert browser.wait_for("window.FetchView && FetchView.state.plotted") == "demo_0"
         cells = browser.evaluate("[...document.querySelectorAll('td.flags')].map(td => [td.textContent, td.title])")
         assert len(cells) == 2 and all("idle" in kinds and "idle" in title for kinds, title in cells)
         assert browser.evaluate("document.querySelectorAll('#detail-flags li').length") >= 1
         assert browser.evaluate("document.querySelectorAll('#plots svg rect.flagged').length") >= 1
         assert browser.errors() == [] and browser.evaluate("FetchView.state.errors") == []
-    finally:
-        browser.close()

@@ -105,14 +105,7 @@ def png_pixels(data: bytes) -> np.ndarray:
 def test_page_in_headless_chromium(page: pathlib.Path, tmp_path: pathlib.Path) -> None:
     import cdp
 
-    chromium = cdp.find_chromium()
-    if chromium is None:
-        pytest.skip("no Chromium (apt-get install chromium): the page is not tested in a browser")
-    profile = tmp_path / "profile"
-    profile.mkdir()
-    browser = cdp.Browser(chromium, str(profile))
-    try:
-        browser.navigate((page / "index.html").resolve().as_uri())
+    with cdp.open_page(page / "index.html", tmp_path) as browser:
         assert browser.wait_for("window.FetchView && FetchView.state.plotted") == "demo_0"
         rows = browser.evaluate("[...document.querySelectorAll('tr.demo')].map(r => r.dataset.demo)")
         assert rows == ["demo_0", "demo_1"]
@@ -150,8 +143,6 @@ def test_page_in_headless_chromium(page: pathlib.Path, tmp_path: pathlib.Path) -
         assert browser.evaluate("document.querySelector('#plots polyline').getAttribute('points')") != first_plot
         assert browser.evaluate("FetchView.state.errors") == []
         assert browser.errors() == []
-    finally:
-        browser.close()
 
 
 def test_a_demo_that_cannot_be_read_is_a_row_without_video(reach_demos: pathlib.Path, tmp_path: pathlib.Path) -> None:
