@@ -149,6 +149,7 @@ class Operator:
         self.pad, self.device, self.expert, self.style = pad, device, expert, style
         self.rng = np.random.default_rng(seed)
         self._held: dict[str, int] = {}  # buttons down -> ticks left (RB: until released)
+        self._released: set[str] = set()
         self.reset_habits()
 
     def draw(self, r: Range, whole: bool = True) -> float:
@@ -160,9 +161,9 @@ class Operator:
         self.stick = self.draw(s.stick, whole=False)
         self.lag = int(self.draw(s.lag))
         self.expert.gain = self.draw(s.gain, whole=False) * stable_gain(self.lag)
-        self.miss = self.rng.random() < s.miss_grasp
+        self.miss = s.miss_grasp > 0 and self.rng.random() < s.miss_grasp
         self.early = self.draw(s.early_close, whole=False)
-        self.side = self.rng.random() < s.side_approach
+        self.side = s.side_approach > 0 and self.rng.random() < s.side_approach
         self.seen: deque[Any] = deque(maxlen=self.lag + 1)
         self.pause = 0
         self.stage = self.expert.stage
@@ -182,7 +183,10 @@ class Operator:
         self._held[button] = max(ticks, 1)
 
     def _release_due(self) -> None:
-        for button in [b for b, left in self._held.items() if b != "rightshoulder" and left <= 1]:
+        """Release the buttons whose time is up; one released now is not pressed again this tick (the
+        pad would show no edge, and a toggle would be lost)."""
+        self._released = {b for b, left in self._held.items() if b != "rightshoulder" and left <= 1}
+        for button in self._released:
             self.pad.release(button)
             del self._held[button]
         for button in self._held:
@@ -199,7 +203,7 @@ class Operator:
     def _gripper(self, want: float) -> None:
         """X when the gripper should change: a tap or a hold (a toggle fires once per press)."""
         closed = self.device.mapper.gripper_closed
-        if "x" in self._held:
+        if "x" in self._held or "x" in self._released:
             return
         if (want > self.OPEN_ABOVE) if closed else (want <= SQUEEZE):
             self._press("x", int(self.draw(self.style.hold_x)))

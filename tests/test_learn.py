@@ -372,7 +372,9 @@ def test_without_torch_train_says_how_to_install_it(reach: pathlib.Path, tmp_pat
 
 def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  # noqa: ANN001
     """Demos recorded through SDL's game-controller path train a policy that then runs end to end."""
-    import vpad
+    import dataclasses
+
+    import operators
     from fetch.dataset import open_dataset
     from fetch.experts import make_expert
     from fetch.teleop.gamepad import GamepadConfig, GamepadDevice
@@ -380,8 +382,9 @@ def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  
 
     config = CollectConfig(env_id="Reach-v2", out=str(tmp_path / "human"), device="gamepad", render="none",
                            control_hz=0, success_hold_steps=3, max_steps=100, episodes=4)
-    # A person steering the grip site to the goal: Reach's expert on the pad (tests/vpad.py).
-    operator = vpad.ExpertOnPad(pad, GamepadDevice(GamepadConfig(deadzone=0.02)), make_expert("Reach-v2"))
+    # A person steering the grip site to the goal: Reach's expert on the pad, a steady hand (tests/operators.py).
+    steady = dataclasses.replace(operators.STANDIN, noise=0.0)
+    operator = operators.Operator(pad, GamepadDevice(GamepadConfig(deadzone=0.02)), make_expert("Reach-v2"), steady)
     Session(config, operator, log=lambda _: None).run()
     with open_dataset(tmp_path / "human") as ds:
         assert len(ds.demo_names) == 4 and {ds.attrs(n)["device"] for n in ds.demo_names} == {"gamepad"}
