@@ -1,5 +1,5 @@
 """`gym-fetch generate --ray`: the same demos as the process pool, made by Ray actors on a local Ray
-instance (skipped when Ray is not installed: `pip install "gym-fetch-v2[ray]"`)."""
+instance (skipped when Ray is not installed: `pip install ".[ray]"`)."""
 
 from __future__ import annotations
 

@@ -367,7 +367,7 @@ def test_a_checkpoint_with_pickled_code_is_refused(torch, tmp_path) -> None:  # 
 def test_without_torch_train_says_how_to_install_it(reach: pathlib.Path, tmp_path, capsys) -> None:  # noqa: ANN001
     assert main(["train", str(reach), "--out", str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.endswith('pip install "gym-fetch-v2[train]"') and len(err.splitlines()) == 1
+    assert err.endswith('pip install ".[train]" (in the gym-fetch-v2 source tree)') and len(err.splitlines()) == 1
 
 
 def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  # noqa: ANN001

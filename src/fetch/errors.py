@@ -20,3 +20,10 @@ class UnknownNameError(FetchError, KeyError):
 
 class DatasetError(FetchError):
     """A dataset that cannot be read or written as asked: missing, foreign, corrupt, locked, mismatched."""
+
+
+def install_hint(extra: str) -> str:
+    """The command that adds an optional part (a `pyproject.toml` extra): gym-fetch-v2 installs from its
+    source tree, so it is `pip install ".[extra]"` run there (`pip install "gym-fetch-v2[extra]"` would
+    look for it on PyPI, where it is not)."""
+    return f'pip install ".[{extra}]" (in the gym-fetch-v2 source tree)'

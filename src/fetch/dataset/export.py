@@ -16,13 +16,13 @@ import numpy as np
 from fetch.dataset import npz, schema
 from fetch.dataset.episode import Demo
 from fetch.dataset.reader import Dataset, open_dataset, require_valid
-from fetch.errors import DatasetError, FetchError, UnknownNameError
+from fetch.errors import DatasetError, FetchError, UnknownNameError, install_hint
 from fetch.teleop.stopping import raise_if_stopped
 
 FORMATS = ("minari", "npz", "lerobot")
 SELECTIONS = ("successful", "all")
 """`--demos` choices besides the masks a file holds (train, valid, failed, ...)."""
-MINARI_INSTALL = 'pip install "gym-fetch-v2[minari]"'
+MINARI_INSTALL = install_hint("minari")
 _DATASET_ID = re.compile(r"^(?:[-_\w][-_\w/]*[-_\w]/)?[-_\w]+-v\d+$")
 """Minari's `(namespace/)name-v<version>`; minari itself accepts a missing version, then fails on load."""
 

@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset import schema
-from fetch.errors import FetchError
+from fetch.errors import FetchError, install_hint
 
 CODEBASE_VERSION = "v3.0"
-INSTALL = 'pip install "gym-fetch-v2[lerobot]"'
+INSTALL = install_hint("lerobot")
 CHUNK_SIZE = 1000
 """Files per chunk directory (LeRobot's DEFAULT_CHUNK_SIZE)."""
 DATA_FILE_MB = 100

@@ -1,7 +1,7 @@
 """Video files of rendered frames: H.264 mp4 (plays everywhere) or gif, through PyAV.
 
 PyAV bundles FFmpeg's libraries in its wheel (no ffmpeg program to install) and encodes from numpy
-frames in-process. It is an optional dependency: `pip install "gym-fetch-v2[video]"`.
+frames in-process. It is an optional dependency: `pip install ".[video]"`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from fetch.errors import FetchError, UnknownNameError
+from fetch.errors import FetchError, UnknownNameError, install_hint
 
 FORMATS = (".mp4", ".gif")
 
@@ -57,7 +57,7 @@ def _av() -> Any:
     try:
         import av
     except ImportError as e:
-        raise FetchError('writing video needs PyAV: pip install "gym-fetch-v2[video]" (or pip install av)') from e
+        raise FetchError(f"writing video needs PyAV: {install_hint('video')}, or pip install av") from e
     return av
 
 

@@ -17,7 +17,7 @@ import signal
 from collections.abc import Iterator
 from typing import Any, Protocol
 
-from fetch.errors import FetchError
+from fetch.errors import FetchError, install_hint
 from fetch.generate.attempt import Generator, Options, Result
 from fetch.generate.sources import Sources
 
@@ -121,7 +121,7 @@ class RayCluster:
         try:
             import ray
         except ImportError as e:
-            raise FetchError('--ray needs Ray: pip install "gym-fetch-v2[ray]"') from e
+            raise FetchError(f"--ray needs Ray: {install_hint('ray')}") from e
         self.ray = ray
         self.started = not ray.is_initialized()
         if self.started:

@@ -5,12 +5,12 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING, Any
 
-from fetch.errors import FetchError
+from fetch.errors import FetchError, install_hint
 
 if TYPE_CHECKING:
     from fetch.learn.runtime import Policy
 
-TORCH_INSTALL = 'pip install "gym-fetch-v2[train]"'
+TORCH_INSTALL = install_hint("train")
 POLICY_KINDS = ("mlp-chunk", "gru")
 """`--policy` choices (the networks are in `policies.POLICIES`, which imports torch)."""
 DEFAULT_POLICY = "gru"

@@ -14,6 +14,7 @@ from fetch.learn import (
     MEASURED_SETTINGS,
     MEASURED_STEPS,
     POLICY_KINDS,
+    TORCH_INSTALL,
     auto_settings,
     default_steps,
     require_torch,
@@ -154,7 +155,7 @@ def run_eval(args: argparse.Namespace) -> int:
 
 def add_learn_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """The `train` and `eval` subcommands."""
-    t = sub.add_parser("train", help="train a policy on a dataset (needs torch: pip install \"gym-fetch-v2[train]\")")
+    t = sub.add_parser("train", help=f"train a policy on a dataset (needs torch: {TORCH_INSTALL})")
     add_train_arguments(t)
     t.set_defaults(run=run_train)
     e = sub.add_parser("eval", help="run a trained policy on seeds its dataset never used: success with a 95%% "
