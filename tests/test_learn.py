@@ -485,3 +485,37 @@ def test_every_operators_style_goes_the_whole_path(torch, pad, style: str, tmp_p
         assert main(["eval", str(tmp_path / "direct"), "--episodes", "2", "--envs", "2"]) == 0
         out = capsys.readouterr().out
         assert f"at step {direct.horizon} (the policy's horizon, from its demos); at the registered step 50" in out
+
+
+def test_eval_video_without_pyav_says_so_before_running_anything(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
+                                                                 monkeypatch: pytest.MonkeyPatch, capsys) -> None:  # noqa: ANN001
+    from fetch.learn import evaluate as ev
+
+    assert _train(reach, tmp_path / "run", "--steps", "5") == 0
+    monkeypatch.setitem(sys.modules, "av", None)  # import av raises ImportError
+    ran: list[int] = []
+    monkeypatch.setattr(ev, "evaluate", lambda *a, **k: ran.append(1))
+    capsys.readouterr()
+    assert main(["eval", str(tmp_path / "run"), "--episodes", "2", "--video", str(tmp_path / "videos")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "writing video needs PyAV" in err and 'pip install ".[video]"' in err and len(err.splitlines()) == 1
+    assert not ran and not (tmp_path / "videos").exists()
+
+
+def test_wrong_turns_between_datasets_and_runs_get_one_line_answers(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
+                                                                    capsys) -> None:  # noqa: ANN001
+    """eval on a dataset (its folder or its file) says it is a dataset and how to train on it; train into
+    the dataset's own folder is refused before anything is written."""
+    for target in (reach, reach / "demos.hdf5"):
+        capsys.readouterr()
+        assert main(["eval", str(target)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert f"{target} is a dataset, not a run: train a policy on it with `gym-fetch train {target}" in err
+        assert len(err.splitlines()) == 1 and "Weights only" not in err
+    before = sorted(p.name for p in reach.rglob("*"))
+    for out in (reach, reach / "run"):
+        capsys.readouterr()
+        assert _train(reach, out, "--steps", "5") == 2
+        err = capsys.readouterr().err.strip()
+        assert f"--out {out} is inside the dataset" in err and len(err.splitlines()) == 1
+    assert sorted(p.name for p in reach.rglob("*")) == before

@@ -3,11 +3,9 @@ answers to wrong turns."""
 
 from __future__ import annotations
 
+import importlib.metadata
 import pathlib
 import re
-import tomllib
-
-import pytest
 
 from fetch.cli import main
 
@@ -15,7 +13,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 
 def extras() -> set[str]:
-    return set(tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"])
+    return set(importlib.metadata.metadata("gym-fetch-v2").get_all("Provides-Extra") or ())
 
 
 def test_every_install_command_names_the_source_tree_and_a_real_extra() -> None:
@@ -42,3 +40,14 @@ def test_every_install_command_names_the_source_tree_and_a_real_extra() -> None:
 def test_the_readme_says_how_to_get_torchs_cpu_wheels() -> None:
     readme = (ROOT / "README.md").read_text()
     assert "pip install torch --index-url https://download.pytorch.org/whl/cpu" in readme
+
+
+def test_a_misspelt_camera_lists_the_cameras_to_choose_from(tmp_path: pathlib.Path, capsys) -> None:  # noqa: ANN001
+    """Not the robot model's internal ones (head_camera_rgb, gripper_camera_rgb, lidar, ...)."""
+    out = tmp_path / "demos"
+    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "1", "--render", "none",
+                 "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(out), "--video", str(tmp_path / "v.mp4"), "--camera", "frnt"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("unknown camera 'frnt'; known: front, side, behind, wrist"), err

@@ -16,15 +16,22 @@ GOAL_GROUP = 2
 """Geom group holding only the goal marker; turned off to hide it."""
 
 
+CAMERAS = ("front", "side", "behind", "wrist")
+"""The cameras this package adds to every scene, the ones to choose from (`robot.CAMERAS` places the first
+three; `wrist` rides on the gripper). The robot model's own (head_camera_rgb, ...) still render when
+named, but are not offered."""
+
+
 def camera_names(model: mujoco.MjModel) -> tuple[str, ...]:
     """The model's cameras, in order."""
     return tuple(model.camera(i).name for i in range(model.ncam))
 
 
 def check_camera(model: mujoco.MjModel, camera: str) -> None:
-    """UnknownNameError naming the model's cameras unless `camera` is one of them."""
-    if camera not in camera_names(model):
-        raise UnknownNameError("camera", camera, camera_names(model))
+    """UnknownNameError naming our cameras (`CAMERAS`) unless `camera` is one of the model's."""
+    names = camera_names(model)
+    if camera not in names:
+        raise UnknownNameError("camera", camera, [c for c in CAMERAS if c in names] or names)
 
 
 def _scene_option(hide_goal: bool) -> mujoco.MjvOption:

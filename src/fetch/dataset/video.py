@@ -53,6 +53,12 @@ def check_video_path(path: str | os.PathLike[str], width: int, height: int) -> p
     return p
 
 
+def require_pyav() -> None:
+    """FetchError with the install command unless PyAV can be imported: a check before long work
+    (`eval --video` runs every episode first)."""
+    _av()
+
+
 def _av() -> Any:
     try:
         import av

@@ -38,6 +38,9 @@ def read(run: str | os.PathLike[str]) -> dict[str, Any]:
     import torch
 
     p = pathlib.Path(run)
+    if dataset_at(p):
+        raise FetchError(f"{p} is a dataset, not a run: train a policy on it with `gym-fetch train {p} --out "
+                         "runs/NAME`, then `gym-fetch eval runs/NAME`")
     file = p if p.is_file() else path(p)
     if not file.exists():
         what = "is not a run directory" if p.exists() else "does not exist"
@@ -52,6 +55,31 @@ def read(run: str | os.PathLike[str]) -> dict[str, Any]:
         raise FetchError(f"{file}: checkpoint version {state.get('version')!r} or its keys are not what this "
                          f"version of gym-fetch-v2 reads (version {VERSION}: {', '.join(KEYS)})")
     return state
+
+
+def dataset_at(p: pathlib.Path) -> bool:
+    """Whether `p` is a dataset: a collector's directory (it holds the index) or an HDF5 file."""
+    from fetch.dataset.schema import INDEX_NAME
+
+    if p.is_dir():
+        return (p / INDEX_NAME).is_file()
+    try:
+        with open(p, "rb") as f:
+            return f.read(8) == b"\x89HDF\r\n\x1a\n"
+    except OSError:
+        return False
+
+
+def require_outside(run: pathlib.Path, dataset: pathlib.Path) -> None:
+    """FetchError unless the run directory `run` is outside the dataset whose file is `dataset` (a
+    collector's directory, when that file is its index; else the file itself)."""
+    from fetch.dataset.schema import INDEX_NAME
+
+    root = dataset.resolve().parent if dataset.name == INDEX_NAME else dataset.resolve()
+    out = run.resolve()
+    if out == root or root in out.parents:
+        raise FetchError(f"--out {run} is inside the dataset {root}: a run writes its checkpoints there; choose a "
+                         "folder outside it, e.g. --out runs/NAME")
 
 
 def require_same(run: pathlib.Path, previous: dict[str, Any], policy: dict[str, Any], train: dict[str, Any],

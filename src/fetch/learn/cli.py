@@ -138,6 +138,10 @@ def run_eval(args: argparse.Namespace) -> int:
         raise FetchError(f"--seed-start must be a whole number >= 0, got {args.seed_start}")
     if args.video is not None and args.videos < 1:
         raise FetchError(f"--videos must be a whole number >= 1, got {args.videos}")
+    if args.video is not None:
+        from fetch.dataset.video import require_pyav
+
+        require_pyav()  # before the episodes, not after them
     policy = load(args.run_dir)
     if args.video is not None:
         from fetch.dataset.frames import check_env_camera

@@ -110,6 +110,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
     run = pathlib.Path(out)
     demos = dataset if isinstance(dataset, Demos) else load_demos(dataset)
+    ckpt.require_outside(run, pathlib.Path(demos.origin))
     if config.demos:
         if len(demos.train) < config.demos:
             raise FetchError(f"--demos {config.demos}: {demos.origin} has only {len(demos.train)} demos in mask/train")

@@ -23,10 +23,9 @@ import numpy as np
 from fetch._environ import environ
 from fetch._gl import check_gl, context_class, has_display
 from fetch.errors import FetchError
-from fetch.rendering import camera_names
+from fetch.rendering import CAMERAS, camera_names
 from fetch.teleop.session import HudState
 
-CAMERAS = ("front", "side", "behind", "wrist")
 MAX_GEOMS = 2000
 """Per scene; the largest task draws under 100 geoms and sites."""
 RENDER_NICE = 10
