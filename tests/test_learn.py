@@ -9,6 +9,7 @@ import pathlib
 import signal
 import subprocess
 import sys
+import time
 
 import gymnasium as gym
 import numpy as np
@@ -519,3 +520,18 @@ def test_wrong_turns_between_datasets_and_runs_get_one_line_answers(torch, reach
         err = capsys.readouterr().err.strip()
         assert f"--out {out} is inside the dataset" in err and len(err.splitlines()) == 1
     assert sorted(p.name for p in reach.rglob("*")) == before
+
+
+def test_train_says_what_it_is_about_to_do_at_once_and_how_long_it_takes(torch, reach: pathlib.Path,  # noqa: ANN001
+                                                                          tmp_path, capsys,  # noqa: ANN001
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    from fetch.learn import data
+
+    read = data.load_demos
+    monkeypatch.setattr(data, "load_demos", lambda path: (time.sleep(1.5), read(path))[1])
+    capsys.readouterr()
+    assert _train(reach, tmp_path / "run", "--steps", "40", "--policy", "mlp-chunk") == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0] == f"reading {reach} ...", "a read that takes a while says so"
+    assert lines[1].startswith("training mlp-chunk on ") and "for steps 1-40, batch " in lines[1]
+    assert lines[2].startswith("step 10/40: ") and lines[2].endswith("minutes to go")

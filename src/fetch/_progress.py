@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
+import threading
 import time
 from collections.abc import Iterable, Iterator
 from typing import TypeVar
@@ -29,3 +31,16 @@ def progress(items: Iterable[T], total: int, label: str, unit: str = "demos") ->
             stream.flush()
     if live and done:
         stream.write("\n")
+
+
+@contextlib.contextmanager
+def said_if_slow(text: str, after: float = 1.0) -> Iterator[None]:
+    """Print `text` on stderr if the block is still running `after` seconds in: a long load says what it
+    is doing, while a quick one (or one that fails at once, with its one-line error) prints nothing."""
+    timer = threading.Timer(after, lambda: print(text, file=sys.stderr, flush=True))
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()

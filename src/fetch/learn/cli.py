@@ -6,6 +6,7 @@ import argparse
 import json
 import pathlib
 
+from fetch._progress import said_if_slow
 from fetch.errors import FetchError
 from fetch.learn import (
     DEFAULT_STEPS,
@@ -80,7 +81,8 @@ def run_train(args: argparse.Namespace) -> int:
     from fetch.learn.policies import KIND_DEFAULTS
     from fetch.learn.train import TrainConfig, train
 
-    demos = load_demos(args.dataset)
+    with said_if_slow(f"reading {args.dataset} ..."):
+        demos = load_demos(args.dataset)
     chosen = auto_settings(demos.env_id) if args.policy == "auto" else {"kind": args.policy}
     kind = chosen["kind"]
     policy = {**KIND_DEFAULTS.get(kind, {}), **chosen}

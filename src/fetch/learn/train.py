@@ -9,6 +9,7 @@ import math
 import os
 import pathlib
 import sys
+import time
 from typing import Any
 
 import numpy as np
@@ -151,6 +152,14 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     valid_samples = samples(policy_config, demos.valid, norm) if demos.valid else None
     x, y, m = _tensors(train_samples)
     running: list[float] = []
+    members = f" x{policy_config.members}" if policy_config.members > 1 else ""
+    mirrored = ", mirror images included" if config.mirror else ""
+    say(f"training {policy_config.kind}{members} on {len(demos.train)} {demos.env_id} demos{mirrored} "
+        f"({len(train_samples)} examples) for steps {start + 1}-{config.steps}, batch {config.batch_size}, "
+        f"{config.threads} thread(s); horizon {horizon} steps; checkpoint every {config.checkpoint_every} steps "
+        f"in {ckpt.path(run)}")
+    clock = time.perf_counter()
+    first = min(config.steps, start + max(10, (config.steps - start) // 100))  # when to say how long it takes
 
     def save(step: int) -> None:
         state = {"format": ckpt.FORMAT, "version": ckpt.VERSION, "policy": policy_config.as_dict(),
@@ -177,6 +186,10 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
         optimizer.step()
         running.append(float(loss.detach()))
         done = step + 1
+        if done == first and done < config.steps:
+            rate = (done - start) / max(time.perf_counter() - clock, 1e-9)
+            say(f"step {done}/{config.steps}: {rate:.0f} steps/s, about {(config.steps - done) / rate / 60:.1f} "
+                "minutes to go")
         if done % config.checkpoint_every == 0 or done == config.steps:
             valid = validation_loss(policy_config, model, valid_samples)
             history["step"].append(float(done))
