@@ -109,6 +109,15 @@ def test_recovered_env_reproduces_the_demos(dataset: pathlib.Path, minari_root: 
     env.close()
 
 
+def test_the_metadata_asks_for_nothing_pip_cannot_install(dataset: pathlib.Path, minari_root: pathlib.Path) -> None:
+    """gym-fetch-v2 is not on PyPI: a requirement on it could never be met (Minari lists it to install);
+    the description says where it comes from instead."""
+    export_minari(dataset, "fetch/drawer-open/expert-v0", force=True)
+    metadata = minari.load_dataset("fetch/drawer-open/expert-v0").storage.metadata
+    assert not any("gym-fetch" in r for r in metadata.get("requirements") or [])
+    assert "installs from its source tree" in metadata["description"]
+
+
 def test_the_eval_env_has_the_registered_horizon(dataset: pathlib.Path, minari_root: pathlib.Path) -> None:
     """Evaluation runs the task as registered; the collection env keeps the collector's --max-steps."""
     export_minari(dataset, "fetch/drawer-open/expert-v0", demos="all")

@@ -132,7 +132,10 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
         # in it. The eval env has the task's registered limit, so that its scores compare with others'.
         spec, eval_spec = env_spec(ds), env_spec(ds, evaluation=True)
         description = description or (f"{len(chosen)} {ds.env_id} demonstrations ({', '.join(devices)}) "
-                                      f"recorded with gym-fetch-v2, exported from {ds.path.name}")
+                                      f"recorded with gym-fetch-v2, exported from {ds.path.name}. Its env needs "
+                                      "the gym-fetch-v2 package (import fetch), which installs from its source "
+                                      "tree; Minari's requirements list leaves it out, as pip cannot find it "
+                                      "on PyPI")
         if ds.layout.cameras:
             description = f"{description.rstrip().rstrip('.')}. {_images_note(ds.layout)}"
         metadata = {"algorithm_name": ", ".join(devices), "author": author, "author_email": author_email,
@@ -163,7 +166,6 @@ def _write_minari(minari: Any, dataset_id: str, ds: Dataset, chosen: dict[str, d
                   eval_spec: Any, metadata: dict[str, Any]) -> int:
     """Create the Minari dataset and add the demos one at a time (the whole dataset never sits in
     memory: with images it would not fit); the steps written."""
-    import fetch
     from fetch._progress import progress
 
     with warnings.catch_warnings():
@@ -172,7 +174,7 @@ def _write_minari(minari: Any, dataset_id: str, ds: Dataset, chosen: dict[str, d
         dataset = minari.create_dataset_from_buffers(
             dataset_id, [], env=env, eval_env=eval_spec, action_space=env.action_space,
             observation_space=_observation_space(env.observation_space, ds.layout), data_format="hdf5",
-            requirements=[f"gym-fetch-v2>={fetch.__version__}"], jpeg_encoding=False, **metadata)
+            requirements=[], jpeg_encoding=False, **metadata)  # gym-fetch-v2 is not on PyPI: the description says
     from minari.data_collector import EpisodeBuffer
 
     steps = 0
