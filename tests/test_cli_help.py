@@ -37,6 +37,24 @@ def test_every_flag_has_help_with_its_default() -> None:
     assert missing == [] and no_default == [], {"no help": missing, "help without the default": no_default}
 
 
+def test_every_positional_argument_has_help() -> None:
+    missing = [f"{name} {action.dest}" for name, sub in _subcommands().items() for action in sub._actions
+               if not action.option_strings and not action.help]
+    assert missing == []
+
+
+def test_version_names_the_package_and_mujoco(capsys: pytest.CaptureFixture[str]) -> None:
+    import mujoco
+
+    import fetch
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.strip() == (f"gym-fetch-v2 {fetch.__version__} (mujoco {mujoco.__version__}, "
+                                               f"python {sys.version.split()[0]})")
+
+
 def test_the_seeds_script_names_itself_in_its_usage() -> None:
     out = subprocess.run([sys.executable, str(ROOT / "collect_fetch_demo.py"), "--help"], capture_output=True,
                          text=True, check=True).stdout

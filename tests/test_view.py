@@ -111,6 +111,12 @@ def test_page_in_headless_chromium(page: pathlib.Path, tmp_path: pathlib.Path) -
         assert rows == ["demo_0", "demo_1"]
         assert browser.evaluate("document.querySelectorAll('#summary-plots svg').length") == 3
         first_plot = browser.evaluate("document.querySelector('#plots polyline').getAttribute('points')")
+        # each plot's legend sits above its plot area, clear of the curves
+        overlaps = browser.evaluate("""[...document.querySelectorAll('#plots svg.plot')].flatMap(svg => {
+            const area = svg.querySelector('rect').getBoundingClientRect();
+            return [...svg.querySelectorAll('text.legend')].filter(t => t.getBoundingClientRect().bottom > area.top)
+              .map(t => svg.dataset.title + ': ' + t.textContent); })""")
+        assert browser.evaluate("document.querySelectorAll('#plots text.legend').length") >= 4 and overlaps == []
         # the videos play: each has presented new frames (the count goes on across loops) and the picture changes
         played = ("[...document.querySelectorAll('video')].map(v => [v.getVideoPlaybackQuality().totalVideoFrames,"
                   " v.paused, v.readyState])")

@@ -266,18 +266,30 @@ def run_split(args: argparse.Namespace) -> int:
     return 0
 
 
+def _version() -> str:
+    """`gym-fetch --version`: the package's, and the mujoco it runs on."""
+    import mujoco
+
+    import fetch
+
+    return f"gym-fetch-v2 {fetch.__version__} (mujoco {mujoco.__version__}, python {sys.version.split()[0]})"
+
+
 def _parser() -> argparse.ArgumentParser:
+    from fetch.dataset.reader import FILE_HELP  # h5py, which export and view import here anyway
+
     p = argparse.ArgumentParser(prog="gym-fetch", description=__doc__)
+    p.add_argument("--version", action="version", version=_version())
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     c = sub.add_parser("collect", help="record demonstrations (gamepad, keyboard, scripted or expert)")
     add_collect_arguments(c)
     c.set_defaults(run=run_collect)
     i = sub.add_parser("info", help="summarise and validate a dataset; non-zero exit if it is inconsistent")
-    i.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
+    i.add_argument("file", help=FILE_HELP)
     i.set_defaults(run=run_info)
     r = sub.add_parser("replay", help="re-simulate demos and compare them with what was recorded, or render "
                                       "them to video")
-    r.add_argument("file")
+    r.add_argument("file", help=FILE_HELP)
     r.add_argument("--demo", default=None, help="a demo index or name, e.g. 3 or demo_3 (default: all)")
     r.add_argument("--check", action="store_true",
                    help="compare observations and states bit for bit (what replay does without --video)")
@@ -290,7 +302,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--fps", type=float, default=None, help="frames per second (default: the control rate, 25)")
     r.set_defaults(run=run_replay)
     o = sub.add_parser("render-obs", help="add a camera's images to every demo, rendered from the saved states")
-    o.add_argument("file")
+    o.add_argument("file", help=FILE_HELP)
     o.add_argument("--camera", required=True, help="a camera of the env, e.g. front or wrist")
     o.add_argument("--size", type=int, default=84, help="image width and height [px] (default 84)")
     o.add_argument("--workers", type=int, default=None, help="render processes (default: one per core)")
@@ -302,7 +314,7 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--force", action="store_true", help="replace --out if it exists")
     m.set_defaults(run=run_merge)
     s = sub.add_parser("split", help="remake mask/train and mask/valid from the successful demos")
-    s.add_argument("file")
+    s.add_argument("file", help=FILE_HELP)
     s.add_argument("--valid", type=float, default=0.1, help="fraction of successful demos for validation (default 0.1)")
     s.add_argument("--seed", type=int, default=0, help="seed of the random assignment (default 0)")
     s.set_defaults(run=run_split)

@@ -15,7 +15,7 @@ import numpy as np
 
 from fetch.dataset import npz, schema
 from fetch.dataset.episode import Demo
-from fetch.dataset.reader import Dataset, open_dataset, require_valid
+from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset, require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError, install_hint
 from fetch.teleop.stopping import raise_if_stopped
 
@@ -300,7 +300,7 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[
     """The `export` subcommand."""
     p = sub.add_parser("export", help="write a dataset as a Minari dataset, a LeRobot dataset or as the seed's "
                                       "per-demo npz files")
-    p.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
+    p.add_argument("file", help=FILE_HELP)
     p.add_argument("--to", required=True, choices=FORMATS,
                    help="minari: a local Minari dataset; npz: the files `collect --format npz` writes; lerobot: a "
                         "LeRobotDataset v3.0 (parquet + mp4)")

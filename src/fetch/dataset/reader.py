@@ -16,6 +16,8 @@ from fetch.dataset import schema
 from fetch.dataset.demo_file import read_demo_group
 from fetch.errors import DatasetError
 
+FILE_HELP = "a dataset file (demos.hdf5) or the directory that holds it"
+"""The help of every subcommand's dataset argument (what `open_dataset` takes)."""
 READ_ERRORS: tuple[type[Exception], ...] = (OSError, KeyError, RuntimeError, ValueError, TypeError)
 """What h5py raises on a damaged file; which one depends on the structure a damaged byte hit."""
 

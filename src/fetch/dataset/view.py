@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset.habits import FLAG_KINDS, dataset_flags
-from fetch.dataset.reader import READ_ERRORS, Dataset, open_dataset, validate
+from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, open_dataset, validate
 from fetch.errors import DatasetError, FetchError
 
 SIGNIFICANT = 5
@@ -198,7 +198,7 @@ def add_view_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[ty
     """The `view` subcommand."""
     p = sub.add_parser("view", help="write a static web page of a dataset: a looping video per demo, plots of "
                                     "actions and observations, histograms of length and success")
-    p.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
+    p.add_argument("file", help=FILE_HELP)
     p.add_argument("--out", required=True, metavar="DIR", help="the page's directory (index.html, videos/, data/)")
     p.add_argument("--camera", default="front", help="the videos' camera: front (default), side, behind or wrist")
     p.add_argument("--size", type=int, default=128, help="video width and height [px] (default 128)")

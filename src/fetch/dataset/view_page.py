@@ -86,10 +86,11 @@ window.FetchView = (() => {
     return Math.abs(v) < 0.01 ? v.toExponential(1) : v.toPrecision(3);
   }
 
-  // A line plot of several series over steps; labels name the series.
-  // `marks`: [start, end) step ranges shaded behind the lines (the demo's flags).
+  // A line plot of several series over steps; labels name the series, in a row above the plot area
+  // (not over the curves). `marks`: the demo's flags, drawn behind the lines: the steps of idle
+  // stretches, chatter and lost successes shaded, each close of a regrasp a thin line.
   function linePlot(title, series, labels, marks) {
-    const W = 280, H = 130, L = 48, R = 6, T = 16, B = 18;
+    const W = 280, H = 142, L = 48, R = 6, T = 28, B = 18;
     const root = svg("svg", { width: W, height: H, class: "plot", "data-title": title });
     let lo = Infinity, hi = -Infinity, n = 0;
     for (const s of series) {
@@ -101,19 +102,26 @@ window.FetchView = (() => {
     const x = (i) => L + (W - L - R) * (n > 1 ? i / (n - 1) : 0.5);
     const y = (v) => T + (H - T - B) * (1 - (v - lo) / (hi - lo));
     root.append(svg("rect", { x: L, y: T, width: W - L - R, height: H - T - B, fill: "#fff", stroke: "#ccc" }));
-    for (const [a, b] of marks || []) {
-      root.append(svg("rect", { x: x(a), y: T, width: Math.max(1, x(b - 1) - x(a)), height: H - T - B,
-                                fill: "#ffe0b2", class: "flagged" }));
+    for (const f of marks || []) {
+      if (f.kind === "long") continue;  // the whole demo: said in its row
+      for (const [a, b] of f.where) {
+        const close = f.kind === "regrasp";
+        root.append(svg("rect", { x: x(a), y: T, width: close ? 1.5 : Math.max(1, x(b - 1) - x(a)),
+                                  height: H - T - B, fill: close ? "#a15c00" : "#ffe0b2", class: "flagged" }));
+      }
     }
     root.append(text(4, 11, title));
     root.append(text(L - 3, T + 8, fmt(hi), "end"), text(L - 3, H - B, fmt(lo), "end"));
     root.append(text(L, H - 4, "step 0"), text(W - R, H - 4, String(n - 1), "end"));
+    let legendX = L + 4;
     series.forEach((s, k) => {
       const points = s.map((v, i) => v === null ? "" : x(i).toFixed(1) + "," + y(v).toFixed(1)).join(" ");
       root.append(svg("polyline", { points, fill: "none", stroke: COLORS[k % COLORS.length], "stroke-width": 1.3 }));
       if (labels && labels[k]) {
-        const t = text(L + 4 + 36 * k, T + 10, labels[k]);
+        const t = text(legendX, T - 5, labels[k]);
+        legendX += 7 * labels[k].length + 10;
         t.setAttribute("style", "fill:" + COLORS[k % COLORS.length]);
+        t.setAttribute("class", "legend");
         root.append(t);
       }
     });
@@ -222,7 +230,7 @@ window.FetchView = (() => {
 
   function draw(name) {
     const data = state.cache[name];
-    const marks = summary.demos.find((x) => x.name === name).flags.flatMap((f) => f.where);
+    const marks = summary.demos.find((x) => x.name === name).flags;
     const plots = [linePlot("action", data.actions, ["x", "y", "z", "grip"], marks),
                    linePlot("reward, is_success", [data.reward, data.success], ["reward", "success"])];
     for (const [part, values] of Object.entries(data.obs)) {

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from fetch.dataset.reader import FILE_HELP
+
 SUBTASKS_HELP = "cut a dataset's demos into their task's subtasks and print where each begins"
 
 
@@ -39,7 +41,7 @@ def add_generate_parser(sub: Any) -> None:
     g.add_argument("--max-attempts", type=int, default=None, help="give up after this many (default 50 per demo)")
     g.set_defaults(run=run_generate)
     s = sub.add_parser("subtasks", help=SUBTASKS_HELP)
-    s.add_argument("file", help="a dataset file (demos.hdf5) or the directory that holds it")
+    s.add_argument("file", help=FILE_HELP)
     s.add_argument("--demo", default=None, help="a demo index or name (default: all)")
     s.set_defaults(run=run_subtasks)
 

@@ -87,8 +87,9 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
 
         self._worlds: Worlds = make_worlds(self.model, self.num_envs, self.robot.hand, int(nthread))
         if not self._worlds.parallel and self.num_envs > 1:
-            gym.logger.warn(f"mujoco {mujoco.__version__} has no mujoco.batch (4.0 on): FetchVectorEnv steps its "
-                            f"{self.num_envs} worlds one after another, on one core (same results)")
+            gym.logger.warn(f"FetchVectorEnv steps its {self.num_envs} worlds one after another, on one core (same "
+                            f"results): mujoco.batch, the threaded path of mujoco 4.0 and later, is not available "
+                            f"(mujoco {mujoco.__version__})")
         self._layout = StateLayout(self.model)
         self._worlds.state[:] = env.get_state()  # every world as a new env is before its first reset
         self._observer = ob.Observer(self.model, self.task.parts)
