@@ -149,3 +149,16 @@ def test_view_shows_the_flags_on_the_row_and_the_plot_in_chromium(pad, tmp_path:
         assert browser.evaluate("document.querySelectorAll('#detail-flags li').length") >= 1
         assert browser.evaluate("document.querySelectorAll('#plots svg rect.flagged').length") >= 1
         assert browser.errors() == [] and browser.evaluate("FetchView.state.errors") == []
+
+
+def test_a_grasp_redone_after_the_segment_began_holding_is_left_out() -> None:
+    """A lift that begins holding (the grasp segment ended closed), lets go and grasps again: its
+    replay starts at the final grasp, so a generated demo holding the object does not let go."""
+    block = np.array([1.3, 0.75, 0.42])
+    targets = np.array([block + [0.0, 0.0, 0.01 * i] for i in range(12)])
+    grips = np.r_[np.ones(3), -np.ones(9)]
+    held = np.r_[targets[:1], targets[:-1]]
+    first, keep = tidy_steps(targets, grips, None, None, Frame(block, 0.0), held, holding=True)
+    assert first == 3 and keep[0] >= 3
+    first, _ = tidy_steps(targets, grips, None, None, Frame(block, 0.0), held, holding=False)
+    assert first == 0, "a first grasp keeps its approach"

@@ -133,7 +133,8 @@ def segments_of(name: str, annotation: Annotation, actions: np.ndarray, openings
         first, keep = 0, np.arange(end - start)
         if tidy:
             still = None if changes is None else still_steps(actions[start:end], changes[start:end])
-            first, keep = tidy_steps(targets, grips, fingers, still, frame, annotation.held[start:end])
+            holding = start > 0 and float(actions[start - 1, 3]) <= SQUEEZE  # the segment before ended closed
+            first, keep = tidy_steps(targets, grips, fingers, still, frame, annotation.held[start:end], holding)
         first += start
         targets, grips = targets[keep], grips[keep]
         closest = int(np.argmin(np.linalg.norm(targets - frame.pos, axis=1)))
@@ -150,21 +151,26 @@ expert's proportional approach does), but this far at least."""
 
 
 def tidy_steps(targets: np.ndarray, grips: np.ndarray, openings: np.ndarray | None, still: np.ndarray | None,
-               frame: Frame, held: np.ndarray) -> tuple[int, np.ndarray]:
+               frame: Frame, held: np.ndarray, holding: bool = False) -> tuple[int, np.ndarray]:
     """Where a segment's replay starts and the indices of the steps it replays, in order (`held` (L, 3)
-    [m]: the hand before each step). A segment that ends holding
-    something starts where the fingers last opened before its final grasp (a missed grasp and its
-    reopening are left out); steps that change nothing (`still`) are left out; and, away from the
-    slow steps are merged so that the target moves up to `TRANSIT` a step, and near the segment's
-    reference no farther than it is from it (`FINE` at least): a person's half-pushed stick and
-    careful corrections, replayed at the expert's pace. Steps whose finger command changes, or after
-    which the fingers still move, are kept as they are."""
+    [m]: the hand before each step; `holding`: the fingers were closed when the segment began).
+
+    - A segment that ends holding something and let go on the way starts at its final grasp if it
+      began holding (the letting go and grasping again are left out: a grasp that a person redid), and
+      otherwise where the fingers last opened before that grasp (a missed grasp left out).
+    - Steps that change nothing (`still`) are left out.
+    - Slow steps are merged so that the target moves up to `TRANSIT` a step, and near the segment's
+      reference no farther than it is from it (`FINE` at least): a person's half-pushed stick and
+      careful corrections, replayed at the expert's pace. Steps whose finger command changes, or
+      after which the fingers still move, keep their timing."""
     n = len(targets)
     squeeze = grips <= SQUEEZE
     first = 0
     if squeeze[-1]:
         final = n - int(np.argmin(squeeze[::-1])) if not squeeze.all() else 0  # the final close
-        if final > 0 and squeeze[:final].any():
+        if final > 0 and (holding or squeeze[0]):
+            first = final  # it held something, let go and grasped again: it goes on holding
+        elif final > 0 and squeeze[:final].any():
             reopened = int(np.flatnonzero(squeeze[:final])[-1]) + 1
             first = reopened
             if openings is not None:  # from where the fingers are open again
