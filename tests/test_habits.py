@@ -74,9 +74,10 @@ def test_a_tidied_segment_leaves_out_rests_and_a_missed_grasp_and_keeps_the_gras
     still[38:] = True
     held = np.r_[targets[:1] + [0, 0, 0.0125], targets[:-1]]
     first, keep = tidy_steps(targets, grips, openings, still, Frame(block, 0.0), held)
-    assert first == 30, "starts where the fingers are open again after the miss"
-    assert keep[-1] == 37 and not set(range(38, n)) & set(keep.tolist()), "no resting step"
-    assert set(range(34, 38)) <= set(keep.tolist()), "every step of the real grasp"
+    kept = set(keep.tolist())
+    assert first == 0 and not kept & set(range(22, 30)), "the approach, then on where the fingers are open again"
+    assert keep[-1] == 37 and not set(range(38, n)) & kept, "no resting step"
+    assert set(range(34, 38)) <= kept, "every step of the real grasp"
     untidied_to_grasp = 34
     assert len(keep) < untidied_to_grasp / 2
 
@@ -159,6 +160,19 @@ def test_a_grasp_redone_after_the_segment_began_holding_is_left_out() -> None:
     grips = np.r_[np.ones(3), -np.ones(9)]
     held = np.r_[targets[:1], targets[:-1]]
     first, keep = tidy_steps(targets, grips, None, None, Frame(block, 0.0), held, holding=True)
-    assert first == 3 and keep[0] >= 3
+    assert first == 3 and keep[0] >= 3, "from the final grasp: nothing held was let go"
     first, _ = tidy_steps(targets, grips, None, None, Frame(block, 0.0), held, holding=False)
     assert first == 0, "a first grasp keeps its approach"
+
+
+def test_a_grasp_made_again_ends_the_grasp_subtask_where_the_last_one_did(pad, tmp_path: pathlib.Path) -> None:  # noqa: ANN001
+    """Bin-pick by the `regrasp` stand-in: its first closing, 3 cm up, touches the block's top (the
+    grasp signal fires), then it lets go and grasps again. The grasp segment ends at the last grasp,
+    so the lift that follows begins holding, and what generation replays closes the fingers once."""
+    human = operators.record(pad, "Bin-pick-v2", "regrasp", tmp_path / "human", 3, seed=0)
+    for grasp, lift, _ in load_sources(human).segments:
+        assert lift.grips[0] <= -0.5, (grasp.demo, lift.start)
+        closed = grasp.grips <= -0.5
+        assert closed[-1] and not np.any(np.diff(closed.astype(int)) < 0), (grasp.demo, grasp.grips)
+        # it ends at the grasp that held, around the block's centre, not at the first closing 3 cm up
+        assert abs(grasp.targets[-1, 2] - grasp.frame.pos[2]) < 0.015, (grasp.demo, grasp.targets[-1], grasp.frame)

@@ -72,7 +72,8 @@ def run_subtasks(args: argparse.Namespace) -> int:
         subtasks = type(env.task).subtasks
         print(f"{ds.env_id}: subtasks {', '.join(s.name for s in subtasks)}")
         for name in names:
-            a = annotate(env, subtasks, ds.arrays(name)["states"])
+            arrays = ds.arrays(name)
+            a = annotate(env, subtasks, arrays["states"], arrays["actions"][:, 3])
             parts = ", ".join(f"{subtasks[k].name} {lo}-{hi - 1}" for k, (lo, hi) in enumerate(a.bounds()))
             print(f"{name}: {parts}" + ("" if a.complete else " (incomplete: not every subtask ended)"))
     return 0

@@ -12,7 +12,7 @@ import numpy as np
 from fetch.dataset.habits import REGRIP, SQUEEZE, STILL, still_steps
 from fetch.errors import FetchError
 from fetch.robot import ACTION_STEP
-from fetch.tasks.subtasks import Frame, Scene, Subtask, Tracker
+from fetch.tasks.subtasks import Frame, Grasped, Scene, Subtask, Tracker
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,9 +92,12 @@ class Annotation:
         return out
 
 
-def annotate(base: Any, subtasks: tuple[Subtask, ...], states: np.ndarray) -> Annotation:
+def annotate(base: Any, subtasks: tuple[Subtask, ...], states: np.ndarray,
+             grips: np.ndarray | None = None) -> Annotation:
     """Label every step of a demo from its saved states (`states[t + 1]` is after step t), by
-    restoring each in the env `base` (a FetchEnv; its state is changed)."""
+    restoring each in the env `base` (a FetchEnv; its state is changed). With the demo's finger
+    commands `grips` (T,), a grasp that was let go and made again ends where the last one did
+    (`_regrasped`): a person's first closing that touched the object did not make the grasp."""
     if not subtasks:
         raise FetchError(f"{base.task.name} declares no subtasks, so its demos cannot be segmented")
     scene = Scene(base.model)
@@ -114,7 +117,34 @@ def annotate(base: Any, subtasks: tuple[Subtask, ...], states: np.ndarray) -> An
         if tracker.current != before and t + 1 < t_total:
             # The next subtask starts with step t + 1, from the state after step t.
             frames[tracker.current] = subtasks[tracker.current].frame(scene, base.data)
+    if grips is not None:
+        for k in range(len(subtasks) - 1):
+            moved = _regrasped(base, subtasks[k], scene, states, labels, k, np.asarray(grips) <= SQUEEZE)
+            if moved is not None:
+                labels[np.flatnonzero(labels == k + 1)[0]:moved] = k
+                base.set_state(states[moved])
+                frames[k + 1] = subtasks[k + 1].frame(scene, base.data)
     return Annotation(labels, tracker.complete and frames[-1] is not None, held, frames)
+
+
+def _regrasped(base: Any, subtask: Subtask, scene: Scene, states: np.ndarray, labels: np.ndarray, k: int,
+               squeeze: np.ndarray) -> int | None:
+    """Where subtask `k`, a grasp, really ends, if the fingers let go in the subtask after it and
+    closed again (the step after which its signal holds once more); else None."""
+    if not isinstance(subtask.done, Grasped):
+        return None
+    after = np.flatnonzero(labels == k + 1)
+    if not len(after) or not squeeze[after[0] - 1] or squeeze[after].all():
+        return None
+    let_go = after[0] + int(np.argmin(squeeze[after]))
+    closes = np.flatnonzero(squeeze[let_go:after[-1] + 1])
+    if not len(closes):
+        return None
+    for t in range(let_go + int(closes[0]), after[-1] + 1):
+        base.set_state(states[t + 1])
+        if subtask.done(scene, base.data):
+            return t + 1
+    return None
 
 
 def segments_of(name: str, annotation: Annotation, actions: np.ndarray, openings: np.ndarray | None = None,
@@ -155,9 +185,10 @@ def tidy_steps(targets: np.ndarray, grips: np.ndarray, openings: np.ndarray | No
     """Where a segment's replay starts and the indices of the steps it replays, in order (`held` (L, 3)
     [m]: the hand before each step; `holding`: the fingers were closed when the segment began).
 
-    - A segment that ends holding something and let go on the way starts at its final grasp if it
-      began holding (the letting go and grasping again are left out: a grasp that a person redid), and
-      otherwise where the fingers last opened before that grasp (a missed grasp left out).
+    - A segment that ends holding something and let go on the way leaves out, if it began holding,
+      its steps from the letting go to its final grasp (a grasp that a person redid), and otherwise
+      its steps from the first closing to where the fingers are open again before the final grasp
+      (a grasp missed and its reopening): the approach before and the grasp after are replayed.
     - Steps that change nothing (`still`) are left out.
     - Slow steps are merged so that the target moves up to `TRANSIT` a step, and near the segment's
       reference no farther than it is from it (`FINE` at least): a person's half-pushed stick and
@@ -165,21 +196,22 @@ def tidy_steps(targets: np.ndarray, grips: np.ndarray, openings: np.ndarray | No
       after which the fingers still move, keep their timing."""
     n = len(targets)
     squeeze = grips <= SQUEEZE
-    first = 0
-    if squeeze[-1]:
-        final = n - int(np.argmin(squeeze[::-1])) if not squeeze.all() else 0  # the final close
-        if final > 0 and (holding or squeeze[0]):
-            first = final  # it held something, let go and grasped again: it goes on holding
-        elif final > 0 and squeeze[:final].any():
+    order = np.arange(n)
+    if squeeze[-1] and not squeeze.all():
+        final = n - int(np.argmin(squeeze[::-1]))  # the final close
+        if holding or squeeze[0]:  # it held something, let go and grasped again: it goes on holding
+            order = np.r_[order[:int(np.argmin(squeeze))], order[final:]]
+        elif squeeze[:final].any():  # closed on nothing and opened again: from before that to where it is open
             reopened = int(np.flatnonzero(squeeze[:final])[-1]) + 1
-            first = reopened
-            if openings is not None:  # from where the fingers are open again
-                wide = openings[reopened:final]
-                first = reopened + int(np.argmax(wide >= 0.9 * wide.max()))
-    order = np.arange(first, n)
+            wide = reopened
+            if openings is not None:
+                span = openings[reopened:final]
+                wide = reopened + int(np.argmax(span >= 0.9 * span.max()))
+            order = np.r_[order[:int(np.argmax(squeeze))], order[wide:]]
     if still is not None:
-        moving = order[~still[first:]]
+        moving = order[~still[order]]
         order = moving if len(moving) else order[-1:]
+    first = int(order[0])
     fingers_move = np.zeros(n, bool)
     if openings is not None:
         fingers_move[1:] = np.abs(np.diff(openings)) >= STILL
@@ -193,4 +225,4 @@ def tidy_steps(targets: np.ndarray, grips: np.ndarray, openings: np.ndarray | No
             keep[-1] = int(i)  # one step of the tidied segment goes from the one before to here
         else:
             keep.append(int(i))
-    return int(order[0]), np.asarray(keep, int)
+    return first, np.asarray(keep, int)

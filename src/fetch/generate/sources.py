@@ -60,7 +60,7 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
             if not attrs.get("success"):
                 continue
             arrays = ds.arrays(name)
-            annotation = annotate(base, subtasks, arrays["states"])
+            annotation = annotate(base, subtasks, arrays["states"], arrays["actions"][:, 3])
             if not annotation.complete:
                 skipped.append(name)
                 continue
