@@ -163,7 +163,7 @@ def test_generated_dataset_validates_replays_exactly_and_labels_its_steps(serial
         for name in ds.demo_names:
             arrays = ds.arrays(name)
             assert arrays["is_success"][-1] == 1
-            recomputed = annotate(env, subtasks, arrays["states"])
+            recomputed = annotate(env, subtasks, arrays["states"], arrays["actions"][:, 3])
             assert np.array_equal(arrays["subtasks"], recomputed.labels)
             labels = arrays["subtasks"]
             # grasped, then (most often) lifted 2 cm and placed; a goal close above the table is

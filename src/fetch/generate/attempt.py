@@ -189,7 +189,7 @@ class Generator:
             demo = buf.demo({"seed": seed, "success": True, "env_id": self.env_id, "device": "generate",
                              "attempt": number, "control_hz": 0.0, "achieved_hz": 0.0, "started": started,
                              "ended": time.time()})
-            labels = annotate(base, self.subtasks, demo.arrays["states"]).labels
+            labels = annotate(base, self.subtasks, demo.arrays["states"], demo.arrays["actions"][:, 3]).labels
             demo.arrays["subtasks"] = labels
         return Result(number, seed, success, steps, tuple(choices), demo)
 

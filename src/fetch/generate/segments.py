@@ -118,8 +118,9 @@ def annotate(base: Any, subtasks: tuple[Subtask, ...], states: np.ndarray,
             # The next subtask starts with step t + 1, from the state after step t.
             frames[tracker.current] = subtasks[tracker.current].frame(scene, base.data)
     if grips is not None:
+        squeeze = np.asarray(grips) <= SQUEEZE
         for k in range(len(subtasks) - 1):
-            moved = _regrasped(base, subtasks[k], scene, states, labels, k, np.asarray(grips) <= SQUEEZE)
+            moved = _regrasped(base, subtasks[k], scene, states, labels, k, squeeze)
             if moved is not None:
                 labels[np.flatnonzero(labels == k + 1)[0]:moved] = k
                 base.set_state(states[moved])
@@ -148,11 +149,11 @@ def _regrasped(base: Any, subtask: Subtask, scene: Scene, states: np.ndarray, la
 
 
 def segments_of(name: str, annotation: Annotation, actions: np.ndarray, openings: np.ndarray | None = None,
-                changes: np.ndarray | None = None, tidy: bool = True) -> list[Segment]:
+                changes: np.ndarray | None = None) -> list[Segment]:
     """A complete demo's segments, one per subtask (see `annotate`); `openings` (T,) [m] is the fingers'
     mean opening after each step, `changes` (T,) the largest change of any observation entry in each
-    step (`still_steps`). With `tidy`, each segment keeps only the steps that move the work on
-    (`tidy_steps`): what a person's pauses, hesitations and missed grasps add is left out."""
+    step (`still_steps`). Each segment keeps only the steps that move the work on (`tidy_steps`): what
+    a person's pauses, hesitations and missed grasps add is left out."""
     out = []
     for k, (start, end) in enumerate(annotation.bounds()):
         frame = annotation.frames[k]
@@ -160,11 +161,9 @@ def segments_of(name: str, annotation: Annotation, actions: np.ndarray, openings
         grips = actions[start:end, 3].astype(np.float64)
         fingers = None if openings is None else openings[start:end].astype(np.float64)
         targets = annotation.held[start:end] + ACTION_STEP * actions[start:end, :3].astype(np.float64)
-        first, keep = 0, np.arange(end - start)
-        if tidy:
-            still = None if changes is None else still_steps(actions[start:end], changes[start:end])
-            holding = start > 0 and float(actions[start - 1, 3]) <= SQUEEZE  # the segment before ended closed
-            first, keep = tidy_steps(targets, grips, fingers, still, frame, annotation.held[start:end], holding)
+        still = None if changes is None else still_steps(actions[start:end], changes[start:end])
+        holding = start > 0 and float(actions[start - 1, 3]) <= SQUEEZE  # the segment before ended closed
+        first, keep = tidy_steps(targets, grips, fingers, still, frame, annotation.held[start:end], holding)
         first += start
         targets, grips = targets[keep], grips[keep]
         closest = int(np.argmin(np.linalg.norm(targets - frame.pos, axis=1)))
