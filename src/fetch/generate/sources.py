@@ -15,6 +15,7 @@ from fetch.dataset.habits import HORIZON_MARGIN, first_success, observation_chan
 from fetch.dataset.reader import open_dataset, require_valid
 from fetch.errors import FetchError
 from fetch.generate.segments import Segment, annotate, segments_of
+from fetch.tasks import registered_horizon
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,8 +40,7 @@ class Sources:
         demo's tidied segments take longer to succeed (times `HORIZON_MARGIN`, plus the `hold` steps
         success must hold). People's demos are slower than the task's 50 steps; tidied, most fit in
         them again."""
-        registered = int(gym.spec(self.env_id).max_episode_steps or 50)
-        return max(registered, math.ceil(HORIZON_MARGIN * max(self.took, default=0)) + hold)
+        return max(registered_horizon(self.env_id), math.ceil(HORIZON_MARGIN * max(self.took, default=0)) + hold)
 
 
 def load_sources(path: str | os.PathLike[str]) -> Sources:

@@ -19,6 +19,7 @@ from fetch.dataset.habits import (
     still_steps,
 )
 from fetch.errors import DatasetError
+from fetch.tasks import registered_horizon
 
 OBS_KEYS = ("observation", "desired_goal")
 """What a policy sees, concatenated in this order: the state and the goal (achieved_goal repeats
@@ -85,13 +86,6 @@ class Demos:
         return needed_horizon(self.env_id, self.train)
 
 
-def registered_horizon(env_id: str) -> int:
-    """[steps] the task's registered episode length (Fetch's 50)."""
-    import gymnasium as gym
-
-    return int(gym.spec(env_id).max_episode_steps or 50)
-
-
 def needed_horizon(env_id: str, episodes: Sequence[Episode]) -> int:
     """[steps] the registered horizon, or more where the demos need it: `HORIZON_MARGIN` times the 95th
     percentile of the steps they took to succeed. People are slower than the task's 50 steps; a policy
@@ -151,9 +145,8 @@ def learnt_steps(arrays: Mapping[str, np.ndarray], layout: Mapping[str, slice] |
     """(T,) bool: the steps of a demo a policy learns from: all but those that change nothing before the
     task is done (`habits.still_steps`: a person's pauses, the hand resting on a grasp already made).
     In such a step the scene looks as in the one before and the action says "stay", so a policy that
-    learns it rests there for good (PickPlace: 6 % success from demos that rest 15 steps after the
-    grasp). Once the task is done, staying still is what the demo teaches, and is kept. `layout`: the
-    observation's (`habits.pose_columns`)."""
+    learns it rests there for good (docs/operators.md). Once the task is done, staying still is what
+    the demo teaches, and is kept. `layout`: the observation's (`habits.pose_columns`)."""
     obs = np.asarray(arrays["obs/observation"])
     columns = pose_columns(layout, obs.shape[1])
     still = still_steps(arrays["actions"], observation_changes(obs, arrays["next_obs/observation"], columns))

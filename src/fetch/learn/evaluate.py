@@ -12,6 +12,7 @@ import gymnasium as gym
 import numpy as np
 
 from fetch.errors import FetchError
+from fetch.tasks import registered_horizon
 
 EVAL_SEED_START = 1_000_000
 """Evaluation seeds count up from here, skipping any seed of the dataset (collections start at 0)."""
@@ -124,7 +125,7 @@ def evaluate(policy: Any, episodes: int, *, envs: int = 50, seed_start: int = EV
         raise FetchError(f"--episodes must be a whole number >= 1, got {episodes}")
     if envs < 1:
         raise FetchError(f"--envs must be a whole number >= 1, got {envs}")
-    registered = int(gym.spec(policy.env_id).max_episode_steps or 50)
+    registered = registered_horizon(policy.env_id)
     horizon = max(registered, int(getattr(policy, "horizon", registered)))
     seeds = eval_seeds(episodes, policy.seeds, seed_start)
     count = min(envs, episodes)

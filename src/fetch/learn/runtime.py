@@ -12,8 +12,9 @@ import torch
 
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
-from fetch.learn.data import Normalizer, flat_obs, registered_horizon
+from fetch.learn.data import Normalizer, flat_obs
 from fetch.learn.policies import Members, PolicyConfig, RecurrentPolicy, build
+from fetch.tasks import registered_horizon
 
 
 class Policy:

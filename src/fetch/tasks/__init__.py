@@ -36,6 +36,16 @@ _BY_NAME: dict[str, type[Task]] = {r.task.name: r.task for r in REGISTRATIONS}
 _BY_ID: dict[str, type[Task]] = {r.env_id: r.task for r in REGISTRATIONS}
 
 
+_HORIZON: dict[str, int] = {r.env_id: r.max_episode_steps for r in REGISTRATIONS}
+
+
+def registered_horizon(env_id: str) -> int:
+    """[steps] the episode length `env_id` is registered with (Fetch's 50)."""
+    if env_id not in _HORIZON:
+        raise UnknownNameError("env", env_id, ENV_IDS)
+    return _HORIZON[env_id]
+
+
 def mirroring_ids() -> tuple[str, ...]:
     """The ids whose task is symmetric about the plane through its start (`Task.mirrors`)."""
     return tuple(r.env_id for r in REGISTRATIONS if r.task.mirrors)
