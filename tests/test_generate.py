@@ -3,6 +3,7 @@ demos whatever the number of workers, resume after a SIGKILL, provenance, bad in
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -365,3 +366,24 @@ def test_subtasks_command_prints_each_demos_segments(source: pathlib.Path, capsy
                                                     ds.arrays(name)["states"]).bounds()
             assert line == f"{name}: grasp {g0}-{g1 - 1}, lift {l0}-{l1 - 1}, place {p0}-{p1 - 1}"
             assert g0 == 0 and l0 == g1 and p0 == l1 and 0 < g1 < l1 < p1
+
+
+def test_a_source_that_stopped_short_of_the_goal_is_carried_the_rest_of_the_way() -> None:
+    """A person stops once success shows, the object at the edge of the 5 cm region: a last segment
+    with `settle` ends that much further, the correction growing from the start to the closest approach."""
+    table = 0.425
+    held = np.array([1.30, 0.75, table + 0.05])
+    targets = np.array([[1.30 + 0.02 * i, 0.75, table + 0.05] for i in range(1, 9)])
+    goal = Frame(np.array([1.50, 0.75, table + 0.05]), 0.0)
+    closest = int(np.argmin(np.linalg.norm(targets - goal.pos, axis=1)))
+    plain = Segment("demo_0", 0, len(targets), held, targets, np.full(len(targets), -1.0), None, goal, closest)
+    settled = dataclasses.replace(plain, settle=np.array([0.04, 0.0, 0.0]))
+    generator = Generator("PickPlace-v2", {}, [[plain] * 3], Options(max_steps=50), seed=0)
+    try:
+        new_goal = Frame(np.array([1.40, 0.70, table + 0.05]), 0.0)
+        a, _, _ = generator.plan(plain, new_goal, held)
+        b, _, _ = generator.plan(settled, new_goal, held)
+    finally:
+        generator.close()
+    assert np.allclose(b[-1] - a[-1], [0.04, 0.0, 0.0])
+    assert np.all(np.diff((b - a)[:, 0]) >= -1e-12) and (b - a)[0, 0] <= 0.04 / (closest + 1) + 1e-12

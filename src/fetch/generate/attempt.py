@@ -126,6 +126,10 @@ class Generator:
         over the segment's approach, and prepend steps only when that would be too fast)."""
         o = self.options
         moved = from_frame(frame, to_frame(segment.frame, segment.targets))
+        if segment.settle is not None:  # close the source's last gap to the goal by its closest approach
+            gap = from_frame(frame, to_frame(segment.frame, segment.frame.pos + segment.settle)) - frame.pos
+            ramp = np.clip(np.arange(1, segment.length + 1) / (segment.closest + 1), 0.0, 1.0)
+            moved = moved + ramp[:, None] * gap
         start = from_frame(frame, to_frame(segment.frame, segment.held))
         offset = held - start
         n_blend = int(o.blend_fraction * segment.closest)

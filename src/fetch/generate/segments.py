@@ -37,6 +37,11 @@ class Segment:
     """the step whose target comes closest to the frame's origin (the grasp, the placement)."""
     steps: np.ndarray | None = None
     """(L,) the source demo's step each replayed step ends at (None: `start` to `end`, every one)."""
+    settle: np.ndarray | None = None
+    """[m, world] the last segment of a task whose last subtask is anchored at the goal: what would have
+    moved the source's achieved goal onto its desired goal at its end (desired - achieved). A person
+    stops once success shows, with the object at the edge of the success region; replayed, the
+    segment closes that gap, so generated demos end with the object at the goal."""
 
     @property
     def length(self) -> int:
