@@ -387,3 +387,23 @@ def test_a_source_that_stopped_short_of_the_goal_is_carried_the_rest_of_the_way(
         generator.close()
     assert np.allclose(b[-1] - a[-1], [0.04, 0.0, 0.0])
     assert np.all(np.diff((b - a)[:, 0]) >= -1e-12) and (b - a)[0, 0] <= 0.04 / (closest + 1) + 1e-12
+
+
+def test_a_drawer_pushed_short_of_its_goal_is_pushed_the_rest_of_the_way_over_the_whole_segment() -> None:
+    """A segment anchored on what the hand moves (a drawer's handle, hooked) closes its source's gap by its
+    last step (`settle_by`), growing step by step from the first: its closest approach to its own
+    anchor is where it starts, and closing the gap there would jerk the hooked hand."""
+    table = 0.425
+    held = np.array([1.30, 0.75, table + 0.05])
+    targets = np.array([[1.30 - 0.02 * i, 0.75, table + 0.05] for i in range(1, 9)])
+    handle = Frame(held.copy(), 0.0)
+    plain = Segment("demo_0", 0, len(targets), held, targets, np.full(len(targets), -1.0), None, handle, 0)
+    settled = dataclasses.replace(plain, settle=np.array([-0.04, 0.0, 0.0]), settle_by=len(targets) - 1)
+    generator = Generator("Drawer-close-v2", {}, [[plain] * 2], Options(max_steps=50), seed=0)
+    try:
+        a, _, _ = generator.plan(plain, handle, held)
+        b, _, _ = generator.plan(settled, handle, held)
+    finally:
+        generator.close()
+    shift = (b - a)[:, 0]
+    assert np.allclose(shift, -0.04 * np.arange(1, 9) / 8)

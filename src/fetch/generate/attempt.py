@@ -128,7 +128,8 @@ class Generator:
         moved = from_frame(frame, to_frame(segment.frame, segment.targets))
         if segment.settle is not None:  # close the source's last gap to the goal by its closest approach
             gap = from_frame(frame, to_frame(segment.frame, segment.frame.pos + segment.settle)) - frame.pos
-            ramp = np.clip(np.arange(1, segment.length + 1) / (segment.closest + 1), 0.0, 1.0)
+            by = segment.closest if segment.settle_by is None else segment.settle_by
+            ramp = np.clip(np.arange(1, segment.length + 1) / (by + 1), 0.0, 1.0)
             moved = moved + ramp[:, None] * gap
         start = from_frame(frame, to_frame(segment.frame, segment.held))
         offset = held - start

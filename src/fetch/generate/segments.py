@@ -42,6 +42,10 @@ class Segment:
     moved the source's achieved goal onto its desired goal at its end (desired - achieved). A person
     stops once success shows, with the object at the edge of the success region; replayed, the
     segment closes that gap, so generated demos end with the object at the goal."""
+    settle_by: int | None = None
+    """the replayed step by which `settle` is closed in full (None: `closest`, the approach to the goal
+    of a segment anchored there; a segment anchored on what the hand moves, a drawer's handle, closes
+    it over its whole length)."""
 
     @property
     def length(self) -> int:
