@@ -1,11 +1,13 @@
-"""A directory written whole: built beside its target under a hidden name and renamed into place."""
+"""A directory written whole: built beside its target under a hidden name and renamed into place; and
+the rule that an output never lies on an input."""
 
 from __future__ import annotations
 
 import contextlib
+import os
 import pathlib
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 
 from fetch.errors import DatasetError
 from fetch.teleop.stopping import raise_if_stopped
@@ -51,3 +53,25 @@ def replacing_dir(target: pathlib.Path, force: bool, what: str = "--out") -> Ite
         shutil.rmtree(building, ignore_errors=True)
         raise
     shutil.rmtree(aside, ignore_errors=True)
+
+
+def dataset_extent(path: str | os.PathLike[str]) -> pathlib.Path:
+    """What a dataset argument covers on disk, resolved: a collector's directory (given as the directory
+    or as its index file, whose demo files live beside it), else the file itself (a merged file)."""
+    from fetch.dataset.schema import INDEX_NAME
+
+    p = pathlib.Path(path).resolve()
+    return p.parent if p.name == INDEX_NAME and p.is_file() else p
+
+
+def require_apart(out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]], what: str = "--out") -> None:
+    """DatasetError unless `out` is neither an input, nor inside one, nor a directory that holds one:
+    writing there, or replacing it with --force, would overwrite or delete what the tool reads."""
+    target = pathlib.Path(out).resolve()
+    for given in inputs:
+        source = dataset_extent(given)
+        if target == source or source in target.parents:
+            where = "is" if target == source else "is inside"
+            raise DatasetError(f"{what} {out} {where} the input {source}; write it elsewhere, outside the input")
+        if target in source.parents:
+            raise DatasetError(f"{what} {out} holds the input {source}; write it elsewhere, outside the input")

@@ -19,6 +19,7 @@ import numpy as np
 
 from fetch._progress import progress
 from fetch.dataset import schema
+from fetch.dataset.dirs import require_apart
 from fetch.dataset.durable import editing, replacing, rewritten
 from fetch.dataset.reader import Dataset, open_dataset, require_valid, resolve
 from fetch.dataset.writer import package_versions
@@ -64,11 +65,9 @@ def _out_path(out: str | os.PathLike[str], inputs: list[pathlib.Path], force: bo
         raise FetchError(f"--out {out}: name the merged file .hdf5 (or .h5)")
     if not p.parent.is_dir():
         raise FetchError(f"--out {out}: the directory {p.parent} does not exist")
-    if p.exists():
-        if not force:
-            raise FetchError(f"{p} exists; pass --force to replace it")
-        if any(p.resolve() == i.resolve() for i in inputs):
-            raise FetchError(f"{p} is one of the inputs; write the merged file elsewhere")
+    require_apart(p, inputs)
+    if p.exists() and not force:
+        raise FetchError(f"{p} exists; pass --force to replace it")
     return p
 
 

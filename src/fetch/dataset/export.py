@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset import npz, schema
+from fetch.dataset.dirs import require_apart
 from fetch.dataset.episode import Demo
 from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset, require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError, install_hint
@@ -239,6 +240,7 @@ def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
     from fetch.dataset.writer import atomic_write
 
     out = pathlib.Path(out_dir)
+    require_apart(out, [ds_path])
     with open_dataset(ds_path) as ds:
         require_valid(ds)  # nothing a tool flags as invalid is passed on
         chosen = select_demos(ds, demos)
@@ -290,6 +292,7 @@ def export_lerobot(ds_path: str | os.PathLike[str], repo_id: str, out: str | os.
         image_size = image_size or ds.layout.image_size or 128
         rate = lerobot.check_export(ds.env_id, ds.env_kwargs, cameras, image_size, fps)
         target = pathlib.Path(out) if out is not None else lerobot.lerobot_home() / repo_id
+        require_apart(target, [ds_path])
         written = lerobot_writer.write_lerobot(ds, chosen, target, repo_id, cameras=cameras,
                                                image_size=image_size, fps=rate, force=force,
                                                workers=min(workers or default_workers(), len(chosen)))

@@ -115,7 +115,7 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
 
     import fetch  # noqa: F401  (registers the ids)
     from fetch._progress import progress
-    from fetch.dataset.dirs import replacing_dir
+    from fetch.dataset.dirs import replacing_dir, require_apart
     from fetch.dataset.frames import check_env_camera
     from fetch.dataset.render_obs import default_workers
     from fetch.dataset.video import check_video_path
@@ -123,6 +123,7 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
 
     if size <= 0 or size % 2:
         raise FetchError(f"--size must be an even number of pixels (H.264 video), got {size}")
+    require_apart(out, [ds_path])
     with open_dataset(ds_path) as ds:
         if ds.env_id not in fetch.ENV_IDS:
             raise DatasetError(f"{ds.path}: its env {ds.env_id!r} is not one of gym-fetch-v2's; "

@@ -17,6 +17,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from fetch.dataset.dirs import require_apart
 from fetch.dataset.formats import open_writer
 from fetch.dataset.reader import open_dataset
 from fetch.errors import FetchError
@@ -115,6 +116,7 @@ def make_backend(config: GenerateConfig, work: Work) -> Backend:
 def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -> Summary:
     """Generate until `--out` holds `config.demos` demos (or the attempts run out)."""
     say = log or (lambda text: print(text, file=sys.stderr, flush=True))
+    require_apart(config.out, [config.source])
     sources = load_sources(config.source)
     options = config.options or Options()
     if options.max_steps is None:

@@ -1,0 +1,65 @@
+"""No tool writes its output onto what it reads: an --out equal to an input, inside it, or holding it is
+refused with one line before anything is written, --force or not (issue: `view D --out D --force` and
+`view demos/reach --out demos --force` deleted the dataset)."""
+
+from __future__ import annotations
+
+import hashlib
+import pathlib
+
+import pytest
+
+from fetch.cli import main
+
+
+@pytest.fixture(scope="module")
+def reach(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    out = tmp_path_factory.mktemp("guards") / "demos" / "reach"
+    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "2", "--render", "none",
+                 "--max-steps", "50", "--out", str(out)]) == 0
+    return out
+
+
+def _digest(root: pathlib.Path) -> str:
+    """Every file under `root` (names and bytes): what a tool must leave as it was."""
+    h = hashlib.sha256()
+    for f in sorted(p for p in root.parent.rglob("*") if p.is_file()):
+        h.update(str(f.relative_to(root.parent)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def _commands(d: pathlib.Path, out: pathlib.Path) -> list[list[str]]:
+    return [["view", str(d), "--out", str(out), "--force"],
+            ["export", str(d), "--to", "npz", "--out", str(out), "--force"],
+            ["export", str(d), "--to", "lerobot", "--repo-id", "me/reach", "--out", str(out), "--force"],
+            ["generate", "--source", str(d), "--out", str(out), "--demos", "2", "--workers", "1"]]
+
+
+@pytest.mark.parametrize("where", ["same", "index", "inside", "parent"])
+def test_an_output_on_its_input_is_refused_and_the_input_is_untouched(reach: pathlib.Path, where: str,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    out = {"same": reach, "index": reach / "demos.hdf5", "inside": reach / "episodes" / "out",
+           "parent": reach.parent}[where]
+    before = _digest(reach)
+    for command in _commands(reach, out):
+        assert main(command) == 2, command
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and f"--out {out}" in err and "outside the input" in err, (command, err)
+        assert _digest(reach) == before, command
+
+
+def test_merge_refuses_to_write_into_an_input(reach: pathlib.Path, tmp_path: pathlib.Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """`merge D E --out D/episodes/demo_1.hdf5 --force` overwrote one of D's demos."""
+    other = tmp_path / "other"
+    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "1", "--render", "none",
+                 "--max-steps", "50", "--out", str(other)]) == 0
+    capsys.readouterr()
+    before = _digest(reach)
+    for out in (reach / "episodes" / "demo_1.hdf5", reach / "demos.hdf5", reach / "merged.hdf5"):
+        assert main(["merge", str(reach), str(other), "--out", str(out), "--force"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "outside the input" in err, err
+    assert _digest(reach) == before
+    assert main(["merge", str(reach), str(other), "--out", str(tmp_path / "merged.hdf5")]) == 0
