@@ -407,3 +407,44 @@ def test_a_drawer_pushed_short_of_its_goal_is_pushed_the_rest_of_the_way_over_th
         generator.close()
     shift = (b - a)[:, 0]
     assert np.allclose(shift, -0.04 * np.arange(1, 9) / 8)
+
+
+def _drive(env_id: str, seed: int, waypoints: list[tuple[str, np.ndarray, int]]) -> tuple[np.ndarray, np.ndarray]:
+    """Saved states and actions of an episode that moves the hand to each waypoint in turn (relative to the
+    object at that moment when the first element is "object"), fingers closed, `n` steps each."""
+    env = gym.make(env_id)
+    base = env.unwrapped
+    obs, _ = env.reset(seed=seed)
+    layout = base.observation_layout
+    states, actions = [base.get_state()], []
+    for anchor, offset, steps in waypoints:
+        for _ in range(steps):
+            grip, obj = obs["observation"][layout["grip_pos"]], obs["observation"][layout["object_pos"]]
+            target = (obj if anchor == "object" else grip) + offset
+            action = np.append(np.clip((target - grip) / 0.05, -1, 1), -1.0).astype(np.float32)
+            obs, *_ = env.step(action)
+            states.append(base.get_state())
+            actions.append(action)
+    env.close()
+    return np.array(states), np.array(actions)
+
+
+def test_an_approach_done_again_ends_where_the_hand_came_down_the_last_time() -> None:
+    """A person's hand reached the place beside the block, found it off the line, went up and came down
+    again before pushing: the approach subtask ends with the last coming down (`_redone`), so the push
+    segment is a push, not a climb, a shift and a descent replayed wherever the block then is."""
+    behind = np.array([-0.06, 0.0, 0.0])  # the push's start (+x: the push direction in these waypoints)
+    states, _ = _drive("Push-v2", 3, [("object", behind + [0, 0, 0.08], 25), ("object", behind, 15),
+                                            ("object", behind + [0, 0.04, 0.08], 12),
+                                            ("object", behind, 15), ("object", [0.02, 0, 0], 12)])
+    base = gym.make("Push-v2").unwrapped
+    subtasks = task_class("Push-v2").subtasks
+    labels = annotate(base, subtasks, states).labels
+    first_down, up_again = 25, 40
+    approach_end = int(np.flatnonzero(labels == 0)[-1])
+    assert approach_end > up_again + 12, "the approach ends with the second coming down"
+    # Without the redo (the signal held once, and never lost before the push), the boundary stays where it fired.
+    states2, _ = _drive("Push-v2", 3, [("object", behind + [0, 0, 0.08], 25), ("object", behind, 15),
+                                       ("object", [0.02, 0, 0], 12)])
+    labels2 = annotate(base, subtasks, states2).labels
+    assert first_down < int(np.flatnonzero(labels2 == 0)[-1]) < up_again

@@ -126,14 +126,15 @@ def annotate(base: Any, subtasks: tuple[Subtask, ...], states: np.ndarray,
         if tracker.current != before and t + 1 < t_total:
             # The next subtask starts with step t + 1, from the state after step t.
             frames[tracker.current] = subtasks[tracker.current].frame(scene, base.data)
-    if grips is not None:
-        squeeze = np.asarray(grips) <= SQUEEZE
-        for k in range(len(subtasks) - 1):
-            moved = _regrasped(base, subtasks[k], scene, states, labels, k, squeeze)
-            if moved is not None:
-                labels[np.flatnonzero(labels == k + 1)[0]:moved] = k
-                base.set_state(states[moved])
-                frames[k + 1] = subtasks[k + 1].frame(scene, base.data)
+    squeeze = None if grips is None else np.asarray(grips) <= SQUEEZE
+    for k in range(len(subtasks) - 1):
+        moved = _redone(base, subtasks[k], scene, states, labels, k, held) if squeeze is None \
+            else _regrasped(base, subtasks[k], scene, states, labels, k, squeeze) \
+            or _redone(base, subtasks[k], scene, states, labels, k, held)
+        if moved is not None:
+            labels[np.flatnonzero(labels == k + 1)[0]:moved] = k
+            base.set_state(states[moved])
+            frames[k + 1] = subtasks[k + 1].frame(scene, base.data)
     return Annotation(labels, tracker.complete and frames[-1] is not None, held, frames)
 
 
@@ -155,6 +156,40 @@ def _regrasped(base: Any, subtask: Subtask, scene: Scene, states: np.ndarray, la
         if subtask.done(scene, base.data):
             return t + 1
     return None
+
+
+REDONE = 0.02
+"""[m] how far the hand must have gone from where a subtask's signal first held, for its coming back to
+count as the subtask done again (`_redone`); less is a signal at the edge of its tolerance, flickering."""
+
+
+def _redone(base: Any, subtask: Subtask, scene: Scene, states: np.ndarray, labels: np.ndarray, k: int,
+            held: np.ndarray) -> int | None:
+    """Where subtask `k` (not a grasp: the hand beside the object, hooked behind a handle) really ends, if
+    its signal was lost in the subtask after it, the hand went `REDONE` or more away, and the signal came
+    back before the hand moved the subtask's object (the step after which it holds for the last time
+    before then); else None. A person whose hand reached the place, found it off, went up and came down
+    again did the subtask with the last coming down. (`held` (T + 1, 3) [m]: the hand before each step.)"""
+    if isinstance(subtask.done, Grasped):
+        return None
+    after = np.flatnonzero(labels == k + 1)
+    if len(after) < 2:
+        return None
+    base.set_state(states[after[0]])
+    start = subtask.frame(scene, base.data).pos.copy()
+    holds = []
+    for t in after:
+        base.set_state(states[t + 1])
+        if np.abs(subtask.frame(scene, base.data).pos - start).max() >= STILL:
+            break  # the object moves from here on: the next subtask is under way
+        holds.append(bool(subtask.done(scene, base.data)))
+    if all(holds) or not any(holds[int(np.argmin(holds)):]):
+        return None  # never lost, or lost and not back before the object moved
+    onset = len(holds) - 1 - int(np.argmin(holds[::-1]))  # the last step at which it did not hold
+    away = np.linalg.norm(held[after[0]:after[0] + onset + 2] - held[after[0]], axis=1).max()
+    if away < REDONE:
+        return None
+    return int(after[0]) + onset + 2 if onset + 1 < len(holds) else None
 
 
 def segments_of(name: str, annotation: Annotation, actions: np.ndarray, openings: np.ndarray | None = None,
