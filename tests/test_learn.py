@@ -410,13 +410,15 @@ def test_train_takes_the_steps_measured_for_the_task_unless_told(torch, reach: p
 
 def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
     from fetch.learn import MEASURED_MIRROR, MEASURED_POLICY, MEASURED_SETTINGS, auto_settings, policy_for
+    from fetch.learn.data import velocity_columns
     from fetch.learn.runtime import load
     from fetch.tasks import ENV_IDS, task_class
 
     assert set(MEASURED_POLICY) | set(MEASURED_SETTINGS) <= set(ENV_IDS), "every exception names a registered task"
     assert MEASURED_MIRROR and all(task_class(t).mirrors for t in MEASURED_MIRROR), "auto mirrors symmetric tasks only"
     assert policy_for("Drawer-close-v2") == "mlp-chunk" and policy_for("Reach-v2") == "gru"
-    assert auto_settings("Push-v2") == {"kind": "mlp-chunk", "members": 5, "goal_offsets": True}
+    assert auto_settings("Push-v2") == {"kind": "mlp-chunk", "members": 5, "goal_offsets": True, "velocities": False,
+                                        "chunk": 1}
     assert auto_settings("Reach-v2") == {"kind": "gru"}
     assert _train(reach, tmp_path / "run", "--steps", "20") == 0  # --policy auto
     assert load(tmp_path / "run").config.kind == policy_for("Reach-v2")
@@ -424,12 +426,14 @@ def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib
     assert main(["collect", "--env", "Push-v2", "--device", "expert", "--episodes", "3", "--render", "none",
                  "--max-steps", "50", "--out", str(push)]) == 0
     assert _train(push, tmp_path / "push-run", "--steps", "5") == 0
-    assert load(tmp_path / "push-run").config.members == 5 and load(tmp_path / "push-run").config.goal_offsets
+    auto = load(tmp_path / "push-run").config
+    assert auto.members == 5 and auto.goal_offsets and auto.chunk == 1
+    assert auto.blind == velocity_columns(gym.make("Push-v2").unwrapped.observation_layout)
     assert _checkpoint(torch, tmp_path / "push-run")["train"]["mirror"]  # fetch.learn.MEASURED_MIRROR
     assert _train(push, tmp_path / "push-one", "--steps", "5", "--members", "1", "--no-goal-offsets",
-                  "--no-mirror") == 0
+                  "--no-mirror", "--velocities", "--chunk", "10") == 0
     one = load(tmp_path / "push-one").config  # flags override auto
-    assert one.members == 1 and not one.goal_offsets
+    assert one.members == 1 and not one.goal_offsets and one.blind == () and one.chunk == 10
     assert not _checkpoint(torch, tmp_path / "push-one")["train"]["mirror"]
 
 
@@ -535,3 +539,39 @@ def test_train_says_what_it_is_about_to_do_at_once_and_how_long_it_takes(torch, 
     assert lines[0] == f"reading {reach} ...", "a read that takes a while says so"
     assert lines[1].startswith("training mlp-chunk on ") and "for steps 1-40, batch " in lines[1]
     assert lines[2].startswith("step 10/40: ") and lines[2].endswith("minutes to go")
+
+
+@pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])
+def test_a_policy_without_velocities_does_not_see_them(torch, reach: pathlib.Path, tmp_path, kind: str,  # noqa: ANN001
+                                                       capsys) -> None:  # noqa: ANN001
+    """`--no-velocities`: the observation's velocity entries (Reach: the grip site's and the fingers') are
+    left out of what the policy reads, in training and acting; anything in their place, NaN included,
+    gives the same actions. The run says so, records it, and a resume with velocities on is refused."""
+    from fetch.learn.data import velocity_columns
+    from fetch.learn.runtime import load
+
+    run = tmp_path / "run"
+    assert _train(reach, run, "--steps", "20", "--policy", kind, "--no-velocities", "--checkpoint-every", "10") == 0
+    assert "not seeing velocities" in capsys.readouterr().out
+    env = gym.make("Reach-v2")
+    layout = env.unwrapped.observation_layout
+    velocities = velocity_columns(layout)
+    assert velocities == tuple(i for name in ("grip_velp", "gripper_vel") for i in range(layout[name].start,
+                                                                                           layout[name].stop))
+    assert tuple(_checkpoint(torch, run)["policy"]["blind"]) == velocities
+    policy = load(run)
+    obs, _ = env.reset(seed=123)
+    hidden = {k: v.copy() for k, v in obs.items()}
+    hidden["observation"][list(velocities)] = np.nan
+    seen = {k: v.copy() for k, v in obs.items()}
+    seen["observation"][list(velocities)] += 0.5
+    actions = []
+    for o in (obs, hidden, seen):
+        policy.reset()
+        actions.append(policy(o))
+    assert np.isfinite(actions[0]).all()
+    np.testing.assert_array_equal(actions[0], actions[1])
+    np.testing.assert_array_equal(actions[0], actions[2])
+    # The same command with velocities on differs from the run's settings: a resume refuses it.
+    assert _train(reach, run, "--steps", "30", "--policy", kind, "--velocities") == 2
+    assert "blind" in capsys.readouterr().err

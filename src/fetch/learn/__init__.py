@@ -21,10 +21,12 @@ whose action chunks carry the timing of the push; on Push the two tie (57 and 59
 trains ~7x faster."""
 
 
-MEASURED_SETTINGS: dict[str, dict[str, Any]] = {"Push-v2": {"members": 5, "goal_offsets": True}}
-"""Settings `--policy auto` adds on tasks where they measured better (docs/learning_curves.md, 3 training
-seeds each, 500 evaluation episodes): on Push an ensemble of 5 networks (78.6 % against one network's
-71.2 %) that also sees the goal's offsets (`--goal-offsets`: 79.9 %)."""
+MEASURED_SETTINGS: dict[str, dict[str, Any]] = {
+    "Push-v2": {"members": 5, "goal_offsets": True, "velocities": False, "chunk": 1}}
+"""Settings `--policy auto` adds on tasks where they measured better: on Push an ensemble of 5 networks
+that also sees the goal's offsets (`--goal-offsets`), does not see the velocities (`--no-velocities`)
+and predicts one action at a time (`--chunk 1`). docs/learning_curves.md and docs/operators.md have the
+measurements."""
 
 
 MEASURED_MIRROR: frozenset[str] = frozenset({"Push-v2", "PickPlace-v2"})

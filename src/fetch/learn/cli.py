@@ -28,6 +28,11 @@ def _auto_tasks(setting: str) -> str:
     return ", ".join(sorted(task for task, settings in MEASURED_SETTINGS.items() if settings.get(setting)))
 
 
+def _blind_tasks() -> list[str]:
+    """The tasks on which `--policy auto` leaves the velocities out (fetch.learn.MEASURED_SETTINGS)."""
+    return sorted(task for task, settings in MEASURED_SETTINGS.items() if settings.get("velocities") is False)
+
+
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("dataset", help="a dataset directory (from gym-fetch collect) or file (e.g. from merge)")
     p.add_argument("--out", required=True, metavar="RUN",
@@ -37,7 +42,8 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                    help="auto (default): the policy measured best on the dataset's task, gru but for "
                         f"{', '.join(sorted(MEASURED_POLICY))} (mlp-chunk), an ensemble of 5 on "
                         f"{_auto_tasks('members')}, "
-                        "goal offsets and mirror images where --goal-offsets and --mirror say "
+                        "goal offsets, velocities, chunks and mirror images where --goal-offsets, --velocities, "
+                        "--chunk and --mirror say "
                         "(docs/learning_curves.md); gru: a "
                         "recurrent policy (BC-RNN); mlp-chunk: an MLP predicting chunks of actions with ACT's "
                         "temporal ensembling, ~7x faster to train")
@@ -51,7 +57,11 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--demos", type=int, default=0, help="train on the first N demos of mask/train (default 0: all)")
     p.add_argument("--batch-size", type=int, default=256, help="examples per step (default 256)")
     p.add_argument("--lr", type=float, default=1e-3, help="peak learning rate, cosine decay to 0 (default 1e-3)")
-    p.add_argument("--chunk", type=int, default=None, help="mlp-chunk: actions per prediction (default 10)")
+    p.add_argument("--chunk", type=int, default=None,
+                   help="mlp-chunk: actions per prediction (default 10; --policy auto: "
+                        + ", ".join(f"{settings['chunk']} on {task}"
+                                    for task, settings in sorted(MEASURED_SETTINGS.items()) if "chunk" in settings)
+                        + ")")
     p.add_argument("--seq-len", type=int, default=None, help="gru: training window [steps] (default 10)")
     p.add_argument("--hidden", type=int, default=None, help="units per layer (default 256; gru 128)")
     p.add_argument("--layers", type=int, default=None, help="hidden layers (default 2; gru 1)")
@@ -63,6 +73,10 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                    help="also feed the policy the goal relative to the achieved goal and to the grip site "
                         "(6 more inputs; default off; --policy auto: on for "
                         f"{_auto_tasks('goal_offsets')})")
+    p.add_argument("--velocities", action=argparse.BooleanOptionalAction, default=None,
+                   help="let the policy see the velocities in the observation (default on; --policy auto: off "
+                        f"for {', '.join(_blind_tasks())}): without them it acts on where things are, and does not "
+                        "learn to go on doing what it did a moment ago from demos of uneven pace (docs/operators.md)")
     p.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
                    help="also learn from each demo's mirror image in the vertical plane through the start "
                         f"(tasks symmetric about it: {', '.join(mirroring_ids())}; "
@@ -77,7 +91,8 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
 
 def run_train(args: argparse.Namespace) -> int:
     require_torch()
-    from fetch.learn.data import load_demos
+    from fetch.dataset.habits import layout_of
+    from fetch.learn.data import load_demos, velocity_columns
     from fetch.learn.policies import KIND_DEFAULTS
     from fetch.learn.train import TrainConfig, train
 
@@ -89,6 +104,10 @@ def run_train(args: argparse.Namespace) -> int:
     for name in ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets"):
         if getattr(args, name) is not None:
             policy[name] = getattr(args, name)
+    velocities = policy.pop("velocities", True)
+    velocities = velocities if args.velocities is None else args.velocities
+    if not velocities:
+        policy["blind"] = velocity_columns(layout_of(demos.env_id) or {})
     if kind == "gru" and args.chunk is not None:
         raise FetchError(f"--chunk is for --policy mlp-chunk; {args.policy} trains gru here, which predicts one "
                          "action per step")
@@ -111,6 +130,7 @@ def run_train(args: argparse.Namespace) -> int:
     resumed = f", resumed at step {result.resumed_from}" if result.resumed_from else ""
     members = f" ({policy['members']} members)" if policy.get("members", 1) > 1 else ""
     mirrored = " and their mirror images" if mirror else ""
+    mirrored += ", not seeing velocities" if policy.get("blind") else ""
     print(f"trained {kind}{members} on {len(demos.train[:args.demos or None])} {demos.env_id} demos{mirrored} for "
           f"{result.steps} steps{resumed}: train loss {result.train_loss:.4f}, valid loss {valid}; "
           f"evaluate with: gym-fetch eval {args.out}")

@@ -29,11 +29,31 @@ GRIP = slice(0, 3)
 """Where the grip site's position is in every task's observation: first (tests/test_envs.py holds it)."""
 
 
-def flat_obs(obs: Mapping[str, np.ndarray], goal_offsets: bool = False) -> np.ndarray:
+def flat_obs(obs: Mapping[str, np.ndarray], goal_offsets: bool = False, blind: Sequence[int] = ()) -> np.ndarray:
     """The policy's input from an observation dict: (..., D) float32, batched or not; with
-    `goal_offsets`, the goal relative to the achieved goal and to the grip site too (D + 6)."""
+    `goal_offsets`, the goal relative to the achieved goal and to the grip site too (D + 6); the
+    entries `blind` set to 0."""
     x = np.concatenate([np.asarray(obs[k], np.float32) for k in OBS_KEYS], axis=-1)
-    return with_goal_offsets(x, np.asarray(obs["achieved_goal"], np.float32)) if goal_offsets else x
+    x = with_goal_offsets(x, np.asarray(obs["achieved_goal"], np.float32)) if goal_offsets else x
+    return _blinded(x, blind)
+
+
+def _blinded(x: np.ndarray, blind: Sequence[int]) -> np.ndarray:
+    if not len(blind):
+        return x
+    x = x.copy()
+    x[..., list(blind)] = 0.0
+    return x
+
+
+def velocity_columns(layout: Mapping[str, slice]) -> tuple[int, ...]:
+    """The entries of the policy's input that are velocities (the observation's parts named `*vel*`).
+
+    A policy that sees how fast the hand and the object move can learn to go on doing what it did a
+    moment ago: from demos with an uneven pace (a person's, who slows down, stops and starts again) it
+    learns "slow goes on slow" and creeps to a stop (the copycat problem of behaviour cloning from
+    observation histories). Left out (`--no-velocities`), it acts on where things are."""
+    return tuple(i for name, part in layout.items() if "vel" in name for i in range(part.start, part.stop))
 
 
 def with_goal_offsets(x: np.ndarray, achieved: np.ndarray) -> np.ndarray:
@@ -62,9 +82,10 @@ class Episode:
     """[steps] how long the demo took to succeed, as recorded (None: it never did)."""
 
 
-def policy_inputs(episode: Episode, goal_offsets: bool) -> np.ndarray:
-    """What a policy with (or without) goal offsets sees at each step of `episode`."""
-    return with_goal_offsets(episode.obs, episode.achieved) if goal_offsets else episode.obs
+def policy_inputs(episode: Episode, goal_offsets: bool, blind: Sequence[int] = ()) -> np.ndarray:
+    """What a policy with (or without) goal offsets, and not seeing the entries `blind`, sees at each
+    step of `episode`."""
+    return _blinded(with_goal_offsets(episode.obs, episode.achieved) if goal_offsets else episode.obs, blind)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -184,8 +205,8 @@ class Normalizer:
     std: np.ndarray
 
     @classmethod
-    def fit(cls, episodes: Sequence[Episode], goal_offsets: bool = False) -> Normalizer:
-        obs = np.concatenate([policy_inputs(e, goal_offsets) for e in episodes]).astype(np.float64)
+    def fit(cls, episodes: Sequence[Episode], goal_offsets: bool = False, blind: Sequence[int] = ()) -> Normalizer:
+        obs = np.concatenate([policy_inputs(e, goal_offsets, blind) for e in episodes]).astype(np.float64)
         # A constant dimension (e.g. a fixed goal height) keeps unit scale rather than dividing by ~0.
         std = np.maximum(obs.std(axis=0), 1e-2)
         return cls(obs.mean(axis=0).astype(np.float32), std.astype(np.float32))

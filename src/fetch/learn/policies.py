@@ -44,6 +44,9 @@ class PolicyConfig:
     """networks trained side by side from different initial weights; the policy acts on their mean."""
     goal_offsets: bool = False
     """also see the goal relative to the achieved goal and to the grip site (`data.with_goal_offsets`)."""
+    blind: tuple[int, ...] = ()
+    """entries of the input the policy does not see (set to 0 before normalising): the observation's
+    velocities with `--no-velocities` (`data.velocity_columns`)."""
 
     def __post_init__(self) -> None:
         if self.kind not in POLICIES:
@@ -56,6 +59,9 @@ class PolicyConfig:
                 raise FetchError(f"policy {name} must be a whole number >= 1, got {value!r}")
         if not isinstance(self.goal_offsets, bool):
             raise FetchError(f"goal_offsets must be true or false, got {self.goal_offsets!r}")
+        object.__setattr__(self, "blind", tuple(self.blind))  # a checkpoint may hold a list
+        if not all(isinstance(i, int) and 0 <= i < self.obs_size for i in self.blind):
+            raise FetchError(f"blind must list input entries 0..{self.obs_size - 1}, got {list(self.blind)}")
         if not self.ensemble_decay >= 0:
             raise FetchError(f"ensemble_decay must be >= 0, got {self.ensemble_decay!r}")
 
@@ -146,7 +152,7 @@ def samples(config: PolicyConfig, episodes: Sequence[Episode], normalize: Any) -
     """Every training example of `episodes`, inputs normalised by `normalize`."""
     xs, ys, ms = [], [], []
     for e in episodes:
-        obs = normalize(policy_inputs(e, config.goal_offsets))
+        obs = normalize(policy_inputs(e, config.goal_offsets, config.blind))
         if config.kind == "gru":
             # A window starts at every step; past the demo's end the last observation repeats, masked out.
             x, m = chunk_targets(obs, config.seq_len)

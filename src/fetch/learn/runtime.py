@@ -47,7 +47,7 @@ class Policy:
         self._hidden: Any = None  # gru: its hidden state (an ensemble's: one per member)
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
-        x = self.normalizer(flat_obs(obs, self.config.goal_offsets))
+        x = self.normalizer(flat_obs(obs, self.config.goal_offsets, self.config.blind))
         single = x.ndim == 1
         x = x[None] if single else x
         if self._batch is None:

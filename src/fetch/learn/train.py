@@ -127,7 +127,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     torch.set_num_threads(config.threads)
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(config.seed)
-    norm = Normalizer.fit(demos.train, policy_config.goal_offsets)
+    norm = Normalizer.fit(demos.train, policy_config.goal_offsets, policy_config.blind)
     model = build(policy_config)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     history: dict[str, list[float]] = {"step": [], "train_loss": [], "valid_loss": []}
