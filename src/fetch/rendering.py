@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Sequence
 from typing import Any
 
 import mujoco
@@ -20,6 +21,24 @@ CAMERAS = ("front", "side", "behind", "wrist")
 """The cameras this package adds to every scene, the ones to choose from (`robot.CAMERAS` places the first
 three; `wrist` rides on the gripper). The robot model's own (head_camera_rgb, ...) still render when
 named, but are not offered."""
+
+
+MAX_IMAGE_SIZE = 2048
+"""[px] the largest image or video side a tool renders (a 2048 x 2048 RGB frame is 12 MB)."""
+
+
+def check_image_size(size: int, flag: str) -> None:
+    """FetchError unless `size` [px] is a whole number from 1 to `MAX_IMAGE_SIZE`."""
+    if not isinstance(size, int) or not 1 <= size <= MAX_IMAGE_SIZE:
+        raise FetchError(f"{flag} must be a whole number of pixels from 1 to {MAX_IMAGE_SIZE}, got {size}")
+
+
+def check_camera_list(cameras: Sequence[str], flag: str = "--cameras") -> None:
+    """FetchError if a camera is named twice (each is recorded once, under its name)."""
+    twice = sorted({c for c in cameras if list(cameras).count(c) > 1})
+    if twice:
+        raise FetchError(f"{flag} names {', '.join(twice)} more than once; list each camera once, e.g. "
+                         f"--cameras {','.join(dict.fromkeys(cameras))}")
 
 
 def camera_names(model: mujoco.MjModel) -> tuple[str, ...]:

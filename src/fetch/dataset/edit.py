@@ -177,6 +177,8 @@ def split(path: str | os.PathLike[str], valid: float, seed: int = 0) -> dict[str
     demos stay in `mask/failed`; other filter keys are kept. Returns the new mask sizes."""
     if not 0.0 <= valid < 1.0:
         raise FetchError(f"--valid must be a fraction in [0, 1), got {valid}")
+    if not 0 <= seed < 2**63:
+        raise FetchError(f"--seed must be a whole number from 0 to 2**63 - 1, got {seed}")
     index = resolve(path)
     with editing(index):
         with open_dataset(index) as ds:

@@ -349,6 +349,9 @@ def run_export(args: argparse.Namespace) -> int:
         done = export_npz(args.file, args.out, demos=args.demos, force=args.force)
         print(f"wrote {len(done.demos)} demo(s), {done.steps} steps, as npz files in {done.path}")
         return 0
+    if args.dataset_id is not None and not args.dataset_id.strip():
+        raise FetchError("--dataset-id is empty; give one such as fetch/reach/expert-v0, or leave it out for the "
+                         "default")
     if args.out is not None:
         raise FetchError(f"--out is for --to npz; a Minari dataset is written under $MINARI_DATASETS_PATH "
                          f"(now {minari_root()})")

@@ -193,8 +193,10 @@ def check_export(env_id: str, env_kwargs: dict[str, Any], cameras: Sequence[str]
     import gymnasium as gym
 
     import fetch  # noqa: F401  (registers the ids)
-    from fetch.rendering import check_camera
+    from fetch.rendering import check_camera, check_camera_list, check_image_size
 
+    check_camera_list(cameras)
+    check_image_size(image_size, "--image-size")
     if env_id not in INSTRUCTIONS:
         raise FetchError(f"no LeRobot task string for {env_id}; add one to fetch.dataset.lerobot.INSTRUCTIONS")
     env: Any = gym.make(env_id, **env_kwargs).unwrapped

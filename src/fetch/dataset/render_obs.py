@@ -23,6 +23,7 @@ from fetch.dataset import schema
 from fetch.dataset.durable import Rewrites, editing
 from fetch.dataset.reader import open_dataset, require_valid, resolve
 from fetch.errors import FetchError
+from fetch.rendering import check_image_size
 from fetch.teleop.stopping import raise_if_stopped
 
 
@@ -60,9 +61,8 @@ def _with_camera(layout: schema.Layout, camera: str, size: int) -> schema.Layout
 def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: int | None = None,
                overwrite: bool = False) -> RenderReport:
     """Add `obs/<camera>_image` and `next_obs/<camera>_image` (uint8, (T, size, size, 3)) to every demo."""
-    if size <= 0:
-        raise FetchError(f"--size must be positive pixels, got {size}")
-    workers = workers or default_workers()
+    check_image_size(size, "--size")
+    workers = default_workers() if workers is None else workers
     if workers < 1:
         raise FetchError(f"--workers must be at least 1, got {workers}")
     index = resolve(path)

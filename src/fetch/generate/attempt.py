@@ -20,6 +20,7 @@ from fetch.errors import FetchError, UnknownNameError
 from fetch.experts.base import Expert
 from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
 from fetch.robot import ACTION_STEP
+from fetch.tasks import MAX_STEPS
 from fetch.tasks.subtasks import Frame, Scene
 
 SELECTIONS = ("nearest", "random")
@@ -62,6 +63,8 @@ class Options:
                                  ("nearest_k", self.nearest_k, 1)):
             if value is not None and value < low:
                 raise FetchError(f"--{name.replace('_', '-')} must be at least {low}, got {value}")
+        if self.max_steps is not None and self.max_steps > MAX_STEPS:
+            raise FetchError(f"--max-steps must be at most {MAX_STEPS}, got {self.max_steps}")
         if not (math.isfinite(self.noise) and self.noise >= 0):
             raise FetchError(f"--noise must be a finite standard deviation >= 0, got {self.noise}")
         if not 0 < self.transit_speed <= 1 or not 0 <= self.blend_fraction <= 1:

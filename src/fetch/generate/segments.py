@@ -170,7 +170,8 @@ def _redone(base: Any, subtask: Subtask, scene: Scene, states: np.ndarray, label
     back before the hand moved the subtask's object (the step after which it holds for the last time
     before then); else None. A person whose hand reached the place, found it off, went up and came down
     again did the subtask with the last coming down. (`held` (T + 1, 3) [m]: the hand before each step.)"""
-    if isinstance(subtask.done, Grasped):
+    done = subtask.done
+    if done is None or isinstance(done, Grasped):
         return None
     after = np.flatnonzero(labels == k + 1)
     if len(after) < 2:
@@ -182,7 +183,7 @@ def _redone(base: Any, subtask: Subtask, scene: Scene, states: np.ndarray, label
         base.set_state(states[t + 1])
         if np.abs(subtask.frame(scene, base.data).pos - start).max() >= STILL:
             break  # the object moves from here on: the next subtask is under way
-        holds.append(bool(subtask.done(scene, base.data)))
+        holds.append(bool(done(scene, base.data)))
     if all(holds) or not any(holds[int(np.argmin(holds)):]):
         return None  # never lost, or lost and not back before the object moved
     onset = len(holds) - 1 - int(np.argmin(holds[::-1]))  # the last step at which it did not hold

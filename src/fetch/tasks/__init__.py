@@ -39,6 +39,11 @@ _BY_ID: dict[str, type[Task]] = {r.env_id: r.task for r in REGISTRATIONS}
 _HORIZON: dict[str, int] = {r.env_id: r.max_episode_steps for r in REGISTRATIONS}
 
 
+MAX_STEPS = 100_000
+"""[steps] the longest attempt a tool runs (`--max-steps`): over an hour at the control rate of 25 Hz; an
+attempt that never ends (a typo of a few zeros) is refused."""
+
+
 def registered_horizon(env_id: str) -> int:
     """[steps] the episode length `env_id` is registered with (Fetch's 50)."""
     if env_id not in _HORIZON:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 import signal
 import time
 from collections.abc import Callable
@@ -17,7 +16,8 @@ from fetch.dataset.background import MAX_QUEUED
 from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.formats import check_format, open_writer, recorded_layout
 from fetch.errors import FetchError, UnknownNameError
-from fetch.rendering import check_camera
+from fetch.rendering import check_camera, check_camera_list, check_image_size
+from fetch.tasks import MAX_STEPS
 from fetch.teleop.devices import Command, Device
 from fetch.teleop.registry import device_kind
 from fetch.teleop.stopping import Stopped, acting_on_stop, polled, raise_if_stopped, signals_held
@@ -25,6 +25,8 @@ from fetch.teleop.stopping import Stopped, acting_on_stop, polled, raise_if_stop
 RENDER_CHOICES = ("auto", "human", "rgb_array", "none")
 
 
+MIN_HZ, MAX_HZ = 0.1, 10_000.0
+"""[Hz] the paced control rates `--control-hz` takes (0: unpaced); a person drives at 25."""
 MAX_SEED = 2**62
 """The largest --seed: seed + attempt number must fit the 64-bit integer a demo stores."""
 
@@ -64,17 +66,21 @@ class CollectConfig:
         if self.render not in RENDER_CHOICES:
             raise UnknownNameError("render mode", self.render, RENDER_CHOICES)
         for name, value, low in (("--episodes", self.episodes, 0), ("--max-steps", self.max_steps, 1),
-                                 ("--success-hold-steps", self.success_hold_steps, 1),
-                                 ("--image-size", self.image_size, 1)):
+                                 ("--success-hold-steps", self.success_hold_steps, 1)):
             if value < low:
                 raise FetchError(f"{name} must be at least {low}, got {value}")
+        if self.max_steps > MAX_STEPS:
+            raise FetchError(f"--max-steps must be at most {MAX_STEPS} (over an hour at 25 Hz), got {self.max_steps}")
+        check_image_size(self.image_size, "--image-size")
+        check_camera_list(self.cameras)
         if not str(self.out).strip():
             raise FetchError("--out must name a directory (it is empty); e.g. --out demos/my_task")
         if not 0 <= self.seed <= MAX_SEED:
             raise FetchError(f"--seed must be a whole number from 0 to 2**62 (every demo stores its reset seed as a "
                              f"64-bit integer), got {self.seed}")
-        if self.control_hz is not None and not (self.control_hz >= 0 and math.isfinite(self.control_hz)):
-            raise FetchError(f"--control-hz must be a rate in Hz >= 0 (0: as fast as possible), got {self.control_hz}")
+        if self.control_hz is not None and not (self.control_hz == 0 or MIN_HZ <= self.control_hz <= MAX_HZ):
+            raise FetchError(f"--control-hz must be 0 (as fast as possible) or a rate from {MIN_HZ:g} to "
+                             f"{MAX_HZ:g} Hz, got {self.control_hz}")
 
     @property
     def human(self) -> bool:
