@@ -11,8 +11,22 @@ ROOT = pathlib.Path(__file__).parents[1]
 README = (ROOT / "README.md").read_text()
 
 
-def test_readme_tables_match_the_code() -> None:
-    assert _docs.render_blocks(README) == README, "run: python -m fetch._docs README.md"
+def test_the_generated_tables_match_the_code() -> None:
+    for name, page in _docs.PAGES.items():
+        text = (ROOT / page).read_text()
+        assert f"<!-- {name}:begin -->" in text, f"{page} lost its {name} table"
+        assert _docs.render_blocks(text) == text, "run: python -m fetch._docs"
+
+
+def test_the_readme_is_an_entry_point_whose_links_resolve() -> None:
+    """At most 250 lines; every page it links to exists, and so does every page those link to."""
+    assert len(README.splitlines()) <= 250
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    for page in pages:
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", page.read_text()):
+            if "://" in target:
+                continue
+            assert (page.parent / target).exists(), f"{page.name} links to {target}, which does not exist"
 
 
 def test_every_task_has_a_picture() -> None:

@@ -51,7 +51,7 @@ def test_mujoco_conventions(env: gym.Env) -> None:
     assert isinstance(u.model, mujoco.MjModel)
     assert isinstance(u.data, mujoco.MjData)
     assert u.dt == pytest.approx(0.04)
-    # 50 steps unless the scripted expert needs longer (README, "Scripted experts").
+    # 50 steps unless the scripted expert needs longer (docs/tasks.md, "Scripted experts").
     assert env.spec.max_episode_steps == 50
 
 

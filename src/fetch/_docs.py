@@ -1,4 +1,4 @@
-"""The README's generated tables (tasks, observation layouts); a test holds the README to them."""
+"""The docs' generated tables (tasks, observation layouts, the dataset's keys); a test holds the pages to them."""
 
 from __future__ import annotations
 
@@ -85,19 +85,21 @@ def dataset_table() -> str:
 
 
 BLOCKS = {"tasks": task_table, "layouts": layout_tables, "dataset": dataset_table}
-"""README blocks between `<!-- NAME:begin -->` and `<!-- NAME:end -->` markers."""
+"""Generated blocks between `<!-- NAME:begin -->` and `<!-- NAME:end -->` markers."""
+PAGES = {"tasks": "README.md", "layouts": "docs/tasks.md", "dataset": "docs/datasets.md"}
+"""The page (from the repository's root) that holds each block."""
 
 
 def render_blocks(text: str) -> str:
-    """`text` with every generated block replaced by its current content."""
+    """`text` with every generated block it holds replaced by its current content."""
     for name, make in BLOCKS.items():
         begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
         head, found, rest = text.partition(begin)
         if not found:
-            raise ValueError(f"README has no {begin} marker")
+            continue
         _, found, tail = rest.partition(end)
         if not found:
-            raise ValueError(f"README has no {end} marker")
+            raise ValueError(f"{begin} has no {end} after it")
         text = f"{head}{begin}\n{make().rstrip()}\n{end}{tail}"
     return text
 
@@ -106,6 +108,6 @@ if __name__ == "__main__":
     import pathlib
     import sys
 
-    readme = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "README.md")
-    readme.write_text(render_blocks(readme.read_text()))
-    print(f"updated {readme}")
+    for page in [pathlib.Path(a) for a in sys.argv[1:]] or [pathlib.Path(p) for p in sorted(set(PAGES.values()))]:
+        page.write_text(render_blocks(page.read_text()))
+        print(f"updated {page}")

@@ -1,4 +1,4 @@
-"""The dataset's layout, declared once: checked on write, on read, and printed in the README."""
+"""The dataset's layout, declared once: checked on write, on read, and printed in docs/datasets.md."""
 
 from __future__ import annotations
 

@@ -28,7 +28,7 @@ attempt that ends by success, --max-steps or a discard leaves the events after i
 attempt (the run prints where each attempt starts); when the list runs out, the session quits.
 Without --scripted-json: a built-in test pattern ({BUILTIN_IDLE_STEPS} idle steps, then discard), which saves
 nothing (unless --keep-failures with --max-steps under {BUILTIN_IDLE_STEPS})."""
-"""The `--scripted-json` format, as the CLI's help and the README state it."""
+"""The `--scripted-json` format, as the CLI's help and docs/collecting.md state it."""
 
 
 class ScriptedDevice:
