@@ -162,3 +162,29 @@ def test_a_demo_that_cannot_be_read_is_a_row_without_video(reach_demos: pathlib.
     assert not rows["demo_0"]["valid"] and rows["demo_0"]["video"] is None and rows["demo_0"]["data"] is None
     assert "cannot be read" in rows["demo_0"]["problem"]
     assert rows["demo_1"]["valid"] and (tmp_path / "r" / rows["demo_1"]["video"]).is_file()
+
+
+def test_a_strangers_markup_in_a_dataset_stays_text_in_chromium(reach_demos: pathlib.Path,
+                                                               tmp_path: pathlib.Path) -> None:
+    """A dataset whose path holds `<!--<script>` (the page's script never ran, the page said "0 invalid")
+    and whose attributes hold markup: the page runs, shows the strings as text and runs none of them."""
+    import cdp
+
+    copy = tmp_path / "x<!--<script>y"
+    shutil.copytree(reach_demos, copy)
+    markup = '<img src=x onerror="window.pwned=1"></script><script>window.pwned=2</script>'
+    with open_dataset(copy) as ds:
+        path, group = ds.demo_file("demo_0")
+    with h5py.File(path, "r+") as f:
+        f[group].attrs["device"] = markup
+    out = tmp_path / "report"
+    assert main(["view", str(copy), "--out", str(out), "--size", str(SIZE)]) == 0
+    html = (out / "index.html").read_text()
+    assert "<!--<script" not in html and markup not in html
+    with cdp.open_page(out / "index.html", tmp_path) as browser:
+        assert browser.wait_for("window.FetchView && FetchView.state.plotted") == "demo_0"
+        assert browser.evaluate("typeof window.pwned") == "undefined"
+        assert browser.evaluate("document.querySelectorAll('img').length") == 0
+        assert browser.evaluate("document.querySelector('#row-demo_0 td.device').textContent") == markup
+        assert "x<!--<script>y" in browser.evaluate("document.getElementById('subtitle').textContent")
+        assert browser.evaluate("FetchView.state.errors") == []

@@ -258,8 +258,12 @@ window.FetchView = (() => {
 
 
 def page(summary: dict[str, Any], title: str) -> str:
-    """The HTML page for `summary` (JSON-able), safe to put inline: no `</script>` can end its tag early."""
-    data = json.dumps(summary, separators=(",", ":")).replace("</", "<\\/")
+    """The HTML page for `summary` (JSON-able). Every string of a dataset (its path, attributes, demo names)
+    is data to the page, never markup: the inline JSON holds no `<`, `>` or `&` (escaped as `\\u003c`...),
+    so no `</script>` ends its tag early and no `<!--<script` swallows the page's script; the page puts
+    strings in with `textContent` only; the title is HTML-escaped."""
+    data = json.dumps(summary, separators=(",", ":")).replace("<", "\\u003c").replace(">", "\\u003e") \
+        .replace("&", "\\u0026")
     safe_title = title.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
     return _PAGE.replace("{{TITLE}}", safe_title).replace("{{SUMMARY}}", data)
 
