@@ -261,7 +261,7 @@ def test_tools_that_edit_wait_for_the_collector(plain: pathlib.Path, command: li
 
 @pytest.mark.parametrize("args, problem", [
     (["--camera", "nope"], "unknown camera 'nope'; known: front"),
-    (["--camera", "front", "--size", "0"], "--size must be positive"),
+    (["--camera", "front", "--size", "0"], "--size must be a whole number of pixels from 1 to 2048"),
     (["--camera", "front", "--workers", "-1"], "--workers must be at least 1"),
 ])
 def test_bad_render_obs_arguments_are_named(plain: pathlib.Path, args: list[str], problem: str,

@@ -110,6 +110,7 @@ class Dataset:
         if name not in data:
             raise DatasetError(f"{self.path} has no demo {name!r}; it has {len(self.demo_names)} demos "
                                f"({', '.join(self.demo_names[:3])}{', ...' if len(self.demo_names) > 3 else ''})")
+        self._check_link(name)
         try:
             group = data[name]
         except READ_ERRORS as e:
@@ -124,6 +125,22 @@ class Dataset:
             raise DatasetError(f"{self.path}: data/{name} is not a group")
         return group
 
+    def _check_link(self, name: str) -> None:
+        """DatasetError unless demo `name`, where the index links it to another file, links to a regular
+        file inside the index's own directory: a downloaded dataset must not make the tools read (or
+        `merge` copy) files elsewhere, nor block on a FIFO."""
+        with contextlib.suppress(*READ_ERRORS):
+            link = self.file["data"].get(name, getlink=True)
+            if not isinstance(link, h5py.ExternalLink):
+                return
+            home = self.path.parent.resolve()
+            target = (self.path.parent / link.filename).resolve()
+            if pathlib.PurePath(link.filename).is_absolute() or home not in target.parents:
+                raise DatasetError(f"{self.path}: demo {name!r} links to {link.filename}, outside the dataset's "
+                                   f"directory {home}; a dataset's demo files live beside its index (episodes/)")
+            if target.exists() and not target.is_file():
+                raise DatasetError(f"{self.path}: demo {name!r} links to {link.filename}, which is not a regular file")
+
     def demo_file(self, name: str) -> tuple[pathlib.Path, str]:
         """Where demo `name` is stored: (file, group path in it). A collector's dataset keeps each
         demo in its own file, linked from the index; a merged one keeps them in the index itself."""
@@ -131,6 +148,7 @@ class Dataset:
         if link is None:
             self.demo(name)  # raises, naming the valid choices
         if isinstance(link, h5py.ExternalLink):
+            self._check_link(name)
             return self.path.parent / link.filename, link.path
         return self.path, f"data/{name}"
 
@@ -175,6 +193,8 @@ def open_dataset(path: str | os.PathLike[str], mode: str = "r") -> Dataset:
     p = resolve(path)
     if not p.exists():
         raise DatasetError(f"{p}: no such file")
+    if not p.is_file():  # a FIFO or a device would block the open, or read forever
+        raise DatasetError(f"{p} is not a regular file; a dataset is an HDF5 file (or the directory that holds one)")
     try:
         file = h5py.File(p, mode)
     except OSError as e:
