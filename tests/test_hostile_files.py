@@ -68,3 +68,50 @@ def test_a_fifo_for_the_index_or_a_demo_is_refused_not_waited_on(reach_demos: pa
 
 def test_the_valid_dataset_still_reads(reach_demos: pathlib.Path) -> None:
     assert main(["info", str(reach_demos)]) == 0
+
+
+def _orphan(d: pathlib.Path, env: str, stub: bool = False) -> pathlib.Path:
+    """A file where the next session would find a demo a kill left out of the index: `episodes/demo_2.hdf5`
+    holding group demo_2, taken from a demo of `env` (or a stub with three attributes)."""
+    src = pathlib.Path(d.parent / f"src-{env}")
+    if not src.exists():
+        assert main(["collect", "--env", env, "--device", "expert", "--episodes", "1", "--render", "none",
+                     "--max-steps", "50", "--out", str(src)]) == 0
+    path = d / "episodes" / "demo_2.hdf5"
+    with h5py.File(src / "episodes" / "demo_0.hdf5", "r") as f, h5py.File(path, "w") as g:
+        if stub:
+            group = g.create_group("demo_2")
+            group.attrs.update({"num_samples": 3, "success": True, "attempt": 10**9})
+        else:
+            f.copy(f["demo_0"], g, "demo_2")
+            g["demo_2"].attrs["attempt"] = 7
+    return path
+
+
+@pytest.mark.parametrize("case", ["Push-v2", "stub"])
+def test_the_collector_takes_in_only_a_demo_of_its_own_dataset(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
+                                                               case: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """A file that is not a demo of this dataset (another env's, a stub) is refused, naming it, instead of
+    being adopted (every tool then refused the dataset; a stub's attempt shifted every later seed)."""
+    d = tmp_path / "d"
+    shutil.copytree(reach_demos, d)
+    path = _orphan(d, "Push-v2", stub=case == "stub")
+    capsys.readouterr()
+    before = (d / "demos.hdf5").read_bytes()
+    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "1", "--render", "none",
+                 "--out", str(d)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]  # after the "collecting ..." banner
+    assert err.startswith("gym-fetch collect: error: ") and str(path) in err and "not a demo of this dataset" in err
+    assert (d / "demos.hdf5").read_bytes() == before and path.exists()
+
+
+def test_the_collector_takes_in_a_demo_a_kill_left_out_of_the_index(reach_demos: pathlib.Path,
+                                                                   tmp_path: pathlib.Path) -> None:
+    d = tmp_path / "d"
+    shutil.copytree(reach_demos, d)
+    _orphan(d, "Reach-v2")
+    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "1", "--render", "none",
+                 "--out", str(d)]) == 0
+    with open_dataset(d) as ds:
+        assert ds.demo_names == ["demo_0", "demo_1", "demo_2", "demo_3"]
+        assert int(ds.attrs("demo_3")["attempt"]) == 8 and int(ds.attrs("demo_3")["seed"]) == 8

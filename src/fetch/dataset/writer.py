@@ -15,6 +15,7 @@ import dataclasses
 import importlib.metadata
 import json
 import os
+import pathlib
 import sys
 import time
 from collections.abc import Callable
@@ -164,19 +165,52 @@ class DatasetWriter(BackgroundWriter):
                 if name not in known and schema.demo_index(name) >= self._next_index:
                     orphans.append((schema.demo_index(name), name, path))
         for _, name, path in sorted(orphans):
+            if not path.is_file():
+                raise DatasetError(f"{path} is not a regular file; a demo file is an HDF5 file. Move it away "
+                                   "(nothing was written)")
             try:
                 with h5py.File(path, "r") as f:
-                    group = f[name]
-                    entry = _Entry(name, int(group.attrs["num_samples"]), bool(group.attrs["success"]),
-                                   self._mask_for(bool(group.attrs["success"])))
-                    self.attempts = max(self.attempts, int(group.attrs["attempt"]) + 1)
+                    samples, success, attempt = self._check_orphan(path, name, f)
             except (OSError, KeyError):
                 continue  # not a complete demo file; it was never listed, so nothing is lost
+            entry = _Entry(name, samples, success, self._mask_for(success))
+            self.attempts = max(self.attempts, attempt + 1)
             self._entries.append(entry)
             self._next_index = schema.demo_index(name) + 1
             self.recovered += 1
         if self.recovered:
             self._write_index()
+
+    def _check_orphan(self, path: pathlib.Path, name: str, f: h5py.File) -> tuple[int, bool, int]:
+        """(steps, success, attempt) of a demo file a kill left out of the index, after checking it is a
+        complete demo of this dataset: one found there that is not (another env's demo, a stub, arrays of
+        the wrong size) is refused, naming the problem, rather than taken in (every tool would then refuse
+        the dataset, and a stub's attempt number would shift every later seed). A demo file is its own
+        group `name` with the attributes and arrays every demo has."""
+        group = f[name]
+        attrs = group.attrs
+
+        def problem(what: str) -> DatasetError:
+            return DatasetError(f"{path} is not a demo of this dataset ({what}), so it is not taken in; move it "
+                                "away (nothing was written)")
+
+        if attrs.get("env_id") != self.header.env_id:
+            raise problem(f"its env_id is {attrs.get('env_id')!r}, the dataset's {self.header.env_id!r}")
+        missing = [k for k in ("num_samples", "success", "attempt", "seed") if k not in attrs]
+        if missing:
+            raise problem(f"it has no attribute {missing[0]!r}")
+        samples, attempt = int(attrs["num_samples"]), int(attrs["attempt"])
+        if samples < 0 or attempt < 0:
+            raise problem(f"num_samples {samples}, attempt {attempt}")
+        layout = self.header.layout
+        expected = {"actions": (samples, 4), "states": (samples + 1, layout.state_size),
+                    **{f"obs/{k}": (samples, n) for k, n in layout.obs_sizes}}
+        for key, shape in expected.items():
+            found = group.get(key)
+            if not isinstance(found, h5py.Dataset) or found.shape != shape:
+                raise problem(f"{key} is {None if found is None else getattr(found, 'shape', 'not an array')}, "
+                              f"not {shape}")
+        return samples, bool(attrs["success"]), attempt
 
     def _check_matches(self, attrs: dict[str, Any]) -> None:
         h = self.header
