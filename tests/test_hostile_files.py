@@ -115,3 +115,16 @@ def test_the_collector_takes_in_a_demo_a_kill_left_out_of_the_index(reach_demos:
     with open_dataset(d) as ds:
         assert ds.demo_names == ["demo_0", "demo_1", "demo_2", "demo_3"]
         assert int(ds.attrs("demo_3")["attempt"]) == 8 and int(ds.attrs("demo_3")["seed"]) == 8
+
+
+def test_info_says_which_demo_files_the_index_does_not_list(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """After a kill `info` listed 360 demos while 374 complete files existed, and said nothing of the rest."""
+    d = tmp_path / "d"
+    shutil.copytree(reach_demos, d)
+    _orphan(d, "Reach-v2")
+    capsys.readouterr()
+    assert main(["info", str(d)]) == 0
+    out = capsys.readouterr().out
+    assert "unlisted    1 demo file(s) in episodes/ that the index does not list (demo_2)" in out, out
+    assert main(["info", str(reach_demos)]) == 0 and "unlisted" not in capsys.readouterr().out

@@ -100,6 +100,11 @@ def run_info(args: argparse.Namespace) -> int:
         print("  versions    " + ", ".join(f"{k} {v}" for k, v in s.versions.items()))
         for line in describe_flags(dataset_flags(ds), s.demos):
             print(line if line.startswith("  ") else "  " + line)
+        if unlisted := ds.unlisted():
+            print(f"  unlisted    {len(unlisted)} demo file(s) in {unlisted[0].parent.name}/ that the index does not "
+                  f"list ({unlisted[0].stem}{'..' + unlisted[-1].stem if len(unlisted) > 1 else ''}): a session "
+                  "stopped before it rewrote the index; the next `gym-fetch collect` on this directory checks "
+                  "them and takes them in")
         problems = validate(ds)
     return _verdict(problems)
 

@@ -141,6 +141,21 @@ class Dataset:
             if target.exists() and not target.is_file():
                 raise DatasetError(f"{self.path}: demo {name!r} links to {link.filename}, which is not a regular file")
 
+    def unlisted(self) -> list[pathlib.Path]:
+        """Demo files beside a collector's index that it does not list: what a session stopped between
+        saving a demo and rewriting the index left (the next `collect` on the directory takes them in)."""
+        if self.path.name != schema.INDEX_NAME:
+            return []
+        listed = set()
+        for name in self.demo_names:
+            with contextlib.suppress(*READ_ERRORS):
+                link = self.file["data"].get(name, getlink=True)
+                if isinstance(link, h5py.ExternalLink):
+                    listed.add(pathlib.PurePath(link.filename).name)
+        found = self.path.parent / schema.EPISODES_DIR
+        return sorted((f for f in found.glob("demo_*.hdf5") if f.name not in listed and f.is_file()),
+                      key=lambda f: (len(f.name), f.name))
+
     def demo_file(self, name: str) -> tuple[pathlib.Path, str]:
         """Where demo `name` is stored: (file, group path in it). A collector's dataset keeps each
         demo in its own file, linked from the index; a merged one keeps them in the index itself."""
