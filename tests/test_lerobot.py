@@ -161,7 +161,7 @@ def test_no_cameras_writes_no_video(reach_demos: pathlib.Path, tmp_path: pathlib
     (["--repo-id", "no-namespace"], "bad --repo-id 'no-namespace'"),
     (["--fps", "30"], "--fps 30: a frame is one control step of 0.04 s"),
     (["--cameras", "front,ceiling"], "unknown camera 'ceiling'; known: "),
-    (["--cameras", "front,front"], "--cameras names front twice"),
+    (["--cameras", "front,front"], "--cameras names front more than once"),
     (["--image-size", "63"], "--image-size must be an even number"),
     (["--dataset-id", "x/y-v0"], "--dataset-id is for --to minari"),
     (["--demos", "nonesuch"], "unknown demo selection 'nonesuch'"),

@@ -63,3 +63,21 @@ def test_merge_refuses_to_write_into_an_input(reach: pathlib.Path, tmp_path: pat
         assert len(err.splitlines()) == 1 and "outside the input" in err, err
     assert _digest(reach) == before
     assert main(["merge", str(reach), str(other), "--out", str(tmp_path / "merged.hdf5")]) == 0
+
+
+@pytest.mark.parametrize("out", [".", ".."])
+def test_the_directory_you_are_in_is_never_replaced(reach: pathlib.Path, tmp_path: pathlib.Path, out: str,
+                                                     monkeypatch: pytest.MonkeyPatch,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """`view D --out . --force` and `--out ..` ended in a traceback (an empty name; a busy directory) after
+    trying to rename the directory in use aside."""
+    here = tmp_path / "work"
+    here.mkdir()
+    (here / "keep.txt").write_text("mine")
+    monkeypatch.chdir(here)
+    for command in (["view", str(reach), "--out", out, "--force"],
+                    ["export", str(reach), "--to", "lerobot", "--repo-id", "me/reach", "--out", out, "--force"]):
+        assert main(command) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "is the directory you are in, or holds it" in err, err
+    assert (here / "keep.txt").read_text() == "mine" and sorted(p.name for p in tmp_path.iterdir()) == ["work"]

@@ -21,7 +21,11 @@ def replacing_dir(target: pathlib.Path, force: bool, what: str = "--out") -> Ite
     after the new one is in place. An error (or Ctrl-C) removes the new directory; a SIGKILL leaves
     it under its hidden name (`.<name>.partial`), which the next run removes, and `target` untouched.
     """
-    target = pathlib.Path(target)
+    given, target = target, pathlib.Path(target).resolve()
+    here = pathlib.Path.cwd().resolve()
+    if target == here or target in here.parents:
+        raise DatasetError(f"{what} {given} is the directory you are in, or holds it; it cannot be replaced "
+                           f"while in use: give a new directory, e.g. {what} report")
     if target.exists() and not target.is_dir():
         raise DatasetError(f"{what} {target} is a file; give a directory")
     if target.is_dir() and any(target.iterdir()) and not force:

@@ -212,7 +212,4 @@ def check_export(env_id: str, env_kwargs: dict[str, Any], cameras: Sequence[str]
                          f"{rate:g} (LeRobot's timestamps are frame_index / fps); pass --fps {rate:g} or leave it out")
     if cameras and (image_size <= 0 or image_size % 2):
         raise FetchError(f"--image-size must be an even number of pixels (H.264 video), got {image_size}")
-    for camera in cameras:
-        if list(cameras).count(camera) > 1:
-            raise FetchError(f"--cameras names {camera} twice")
     return round(rate)
