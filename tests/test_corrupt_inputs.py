@@ -139,6 +139,13 @@ CASES: dict[str, Case] = {
     "actions_3_columns": Case(edit_demo(replace("actions", lambda a: a[:, :3])), "actions"),
     "nan_action": Case(edit_demo(replace("actions", nan_at)), "actions.*NaN"),
     "obs_rows_short": Case(edit_demo(replace("obs/observation", lambda a: a[:-1])), "obs/observation"),
+    "seed_2_64": Case(edit_demo(lambda g: g.attrs.__setitem__("seed", np.uint64(2**64 - 1))), "seed"),
+    "nan_expert_action": Case(edit_demo(replace("expert_actions", nan_at)), "expert_actions"),
+    "huge_expert_action": Case(edit_demo(replace("expert_actions", lambda a: a * 1e6)), "expert_actions"),
+    "nan_reward": Case(edit_demo(replace("rewards", lambda a: np.where(np.arange(len(a)) == 3, np.nan, a))),
+                       "rewards"),
+    "is_success_7": Case(edit_demo(replace("is_success", lambda a: np.full_like(a, 7))), "is_success"),
+    "terminated_always": Case(edit_demo(replace("terminated", lambda a: np.ones_like(a))), "terminated"),
 }
 
 

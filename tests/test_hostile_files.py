@@ -128,3 +128,34 @@ def test_info_says_which_demo_files_the_index_does_not_list(reach_demos: pathlib
     out = capsys.readouterr().out
     assert "unlisted    1 demo file(s) in episodes/ that the index does not list (demo_2)" in out, out
     assert main(["info", str(reach_demos)]) == 0 and "unlisted" not in capsys.readouterr().out
+
+
+def _without_steps(d: pathlib.Path, name: str) -> None:
+    """Demo `name` cut to no steps (its start state alone), the index's total to match."""
+    with h5py.File(d / "episodes" / f"{name}.hdf5", "r+") as f:
+        def shrink(group: h5py.Group) -> None:
+            for key in list(group.keys()):
+                item = group[key]
+                if isinstance(item, h5py.Group):
+                    shrink(item)
+                    continue
+                data = item[()]
+                del group[key]
+                group.create_dataset(key, data=data[:1 if key == "states" else 0])
+        shrink(f[name])
+        steps = int(f[name].attrs["num_samples"])
+        f[name].attrs["num_samples"] = 0
+    with h5py.File(d / "demos.hdf5", "r+") as f:
+        f["data"].attrs["total"] = int(f["data"].attrs["total"]) - steps
+
+
+def test_render_obs_on_a_demo_of_no_steps(reach_demos: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """It ended in a traceback (HDF5 chunks of one row in an array of none)."""
+    d = tmp_path / "d"
+    shutil.copytree(reach_demos, d)
+    _without_steps(d, "demo_0")
+    assert main(["render-obs", str(d), "--camera", "front", "--size", "32", "--workers", "1"]) == 0
+    with open_dataset(d) as ds:
+        assert ds.arrays("demo_0")["obs/front_image"].shape == (0, 32, 32, 3)
+        assert ds.arrays("demo_1")["obs/front_image"].shape[1:] == (32, 32, 3)
+    assert main(["replay", str(d), "--check"]) == 0

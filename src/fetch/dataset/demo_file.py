@@ -34,7 +34,7 @@ def write_demo_group(group: h5py.Group, demo: Demo) -> None:
     for key, array in demo.arrays.items():
         # Images compress well and are large; the rest is small and read often, so stays raw.
         options: dict[str, Any] = {"compression": "gzip", "compression_opts": 4} if array.dtype == np.uint8 \
-            and array.ndim == 4 else {}
+            and array.ndim == 4 and len(array) else {}
         group.create_dataset(key, data=array, **options)
 
 

@@ -387,6 +387,16 @@ def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dic
             problems.append(f"{name}: obs/{key} or next_obs/{key} hold NaN or infinite values")
         elif t > 1 and not np.array_equal(obs[1:], nxt[:-1]):
             problems.append(f"{name}: next_obs/{key}[t] differs from obs/{key}[t+1]")
+    if "expert_actions" in arrays:  # what training learns, where present
+        meant = arrays["expert_actions"][()]
+        if meant.shape != actions.shape or not np.all(np.isfinite(meant)) or (t and np.abs(meant).max() > 1.0):
+            problems.append(f"{name}: expert_actions must be {actions.shape}, finite and within [-1, 1]")
+    if not np.all(np.isfinite(arrays["rewards"][()])):
+        problems.append(f"{name}: rewards hold NaN or infinite values")
+    if not np.isin(arrays["is_success"][()], (0, 1)).all():
+        problems.append(f"{name}: is_success holds values other than 0 and 1")
+    if t and np.asarray(arrays["terminated"][()])[:-1].any():
+        problems.append(f"{name}: terminated before its last step (an episode ends where it terminates)")
     if not np.all(np.isfinite(arrays["states"][()])):
         problems.append(f"{name}: states hold NaN or infinite values")
     dones = arrays["dones"][()]

@@ -50,7 +50,9 @@ def _store(group: h5py.Group, key: str, images: np.ndarray) -> None:
         path = f"{prefix}/{key}"
         if path in group:
             del group[path]  # an earlier, interrupted run's (or --overwrite)
-        group.create_dataset(path, data=rows, compression="gzip", compression_opts=4, chunks=(1, *rows.shape[1:]))
+        # A demo of no steps has no rows: HDF5 chunks (and so compresses) only arrays that have some.
+        options = {"compression": "gzip", "compression_opts": 4, "chunks": (1, *rows.shape[1:])} if len(rows) else {}
+        group.create_dataset(path, data=rows, **options)
 
 
 def _with_camera(layout: schema.Layout, camera: str, size: int) -> schema.Layout:

@@ -114,10 +114,12 @@ DEMO_ATTR_KINDS: dict[str, str] = {
     "num_samples": "count", "seed": "count", "attempt": "count", "success": "bool", "env_id": "text",
     "device": "text", "control_hz": "number", "achieved_hz": "number", "started": "number", "ended": "number",
 }
-"""What each of `DEMO_ATTRS` holds: count (a whole number >= 0), bool, text or number (finite)."""
+"""What each of `DEMO_ATTRS` holds: count (a whole number from 0 to 2**63 - 1), bool, text or number
+(finite)."""
 DATA_ATTR_KINDS: dict[str, str] = {"total": "count", "attempts": "count", "created": "number"}
 """The kinds of the numeric `DATA_ATTRS` (the others are JSON or text, read by `reader.Dataset`)."""
-_KINDS = {"count": "a whole number >= 0", "bool": "a boolean", "text": "a string", "number": "a finite number"}
+_KINDS = {"count": "a whole number from 0 to 2**63 - 1", "bool": "a boolean", "text": "a string",
+          "number": "a finite number"}
 
 
 def kind_problem(value: Any, kind: str) -> str | None:
@@ -125,8 +127,8 @@ def kind_problem(value: Any, kind: str) -> str | None:
     if isinstance(value, np.ndarray) and value.shape == ():
         value = value[()]
     boolean = isinstance(value, bool | np.bool_)
-    if kind == "count":
-        ok = isinstance(value, int | np.integer) and not boolean and value >= 0
+    if kind == "count":  # int64 holds it: what every consumer stores a seed or a count in
+        ok = isinstance(value, int | np.integer) and not boolean and 0 <= value < 2**63
     elif kind == "bool":
         ok = boolean or (isinstance(value, int | np.integer) and value in (0, 1))
     elif kind == "text":
