@@ -8,7 +8,7 @@ import subprocess
 import sys
 
 from fetch.cli import main
-from procs import alive, children
+from procs import alive, children, command_line
 
 
 def _collect(out: pathlib.Path, episodes: int) -> int:
@@ -89,7 +89,6 @@ def test_the_collector_replaces_a_render_worker_that_dies(tmp_path: pathlib.Path
     import time
 
     from fetch.dataset import open_dataset, validate
-    from procs import command_line
 
     out = tmp_path / "demos"
     command = [sys.executable, "-u", "-m", "fetch.cli", "collect", "--env", "Reach-v2", "--device", "expert",
@@ -220,3 +219,26 @@ def _indexed(out: pathlib.Path) -> set[str]:
 
     with h5py.File(out / "demos.hdf5", "r") as f:
         return set(f["data"].keys())
+
+
+def test_generate_workers_die_with_a_killed_generate(reach_demos: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """A SIGKILLed `generate --workers 2` left its 2 workers and a resource tracker running for good
+    (10 of 10, ~136 MB each)."""
+    import time
+
+    command = [sys.executable, "-u", "-m", "fetch.cli", "generate", "--source", str(reach_demos), "--out",
+               str(tmp_path / "gen"), "--demos", "100000", "--workers", "2"]
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while len(children(proc.pid)) < 3 and time.monotonic() < deadline:  # 2 workers and the resource tracker
+        time.sleep(0.2)
+    while not any((tmp_path / "gen" / "episodes").glob("demo_*.hdf5")) and time.monotonic() < deadline:
+        time.sleep(0.2)  # the workers are making demos
+    started = children(proc.pid)
+    assert len(started) >= 3, started
+    proc.kill()
+    proc.wait(timeout=30)
+    deadline = time.monotonic() + 20
+    while any(alive(c) for c in started) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [command_line(c) for c in started if alive(c)], "processes outlived a killed generate"

@@ -13,14 +13,13 @@ import os
 import pathlib
 import shutil
 import tempfile
-import threading
-import time
 from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from fetch._processes import exit_with_parent
 from fetch.errors import FetchError
 
 
@@ -89,20 +88,8 @@ class StateRenderer:
 _process_renderer: list[StateRenderer] = []
 
 
-def _exit_with_parent(parent: int, period: float = 0.5) -> None:
-    """End this worker once its parent is gone (SIGKILLed collectors left workers stuck writing to a
-    dead pipe, ~276 MB each, forever). A watch on the parent's pid, not PR_SET_PDEATHSIG: that fires
-    when the *thread* that started the worker ends, and the writer's thread starts some of them."""
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(period)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="fetch-exit-with-parent", daemon=True).start()
-
-
 def _start_process(env_id: str, env_kwargs: dict[str, Any], size: int, nice: int, parent: int) -> None:
-    _exit_with_parent(parent)
+    exit_with_parent(parent)
     # Software GL (llvmpipe) starts a thread per core in every process; one thread each keeps
     # parallel workers (and a collector's control loop) from contending, unless the user says otherwise.
     os.environ.setdefault("LP_NUM_THREADS", "1")

@@ -17,6 +17,7 @@ import signal
 from collections.abc import Iterator
 from typing import Any, Protocol
 
+from fetch._processes import exit_with_parent
 from fetch.errors import FetchError, install_hint
 from fetch.generate.attempt import Generator, Options, Result
 from fetch.generate.sources import Sources
@@ -72,8 +73,9 @@ class Serial:
 _worker: Generator | None = None
 
 
-def _init_worker(work: Work, nice: int) -> None:
+def _init_worker(work: Work, nice: int, parent: int) -> None:
     global _worker
+    exit_with_parent(parent)
     # Ctrl-C reaches the whole process group: the driver stops the pool and finishes the saves.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if nice:
@@ -103,7 +105,7 @@ class Pool:
         self.workers = workers
         self.executor = concurrent.futures.ProcessPoolExecutor(
             workers, mp_context=multiprocessing.get_context("spawn"), initializer=_init_worker,
-            initargs=(work, nice))
+            initargs=(work, nice, os.getpid()))
 
     def results(self, first: int) -> Iterator[Result]:
         return _ordered(lambda start, n: self.executor.submit(_run_chunk, start, n),
