@@ -56,3 +56,18 @@ def reach_demos(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
     assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "2", "--render", "none",
                  "--out", str(out)]) == 0
     return out
+
+
+SLOW = frozenset((pathlib.Path(__file__).parent / "slow.txt").read_text().splitlines())
+"""Node ids of the tests the `slow` marker selects (`scripts/mark_slow.py` writes them from a timed run)."""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "slow: over 0.5 s in the last timed run (tests/slow.txt); "
+                                       "pytest -m 'not slow' runs the rest in under 2 minutes on 2 cores")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.nodeid in SLOW:
+            item.add_marker(pytest.mark.slow)
