@@ -83,6 +83,8 @@ def test_a_write_failure_is_a_clear_error_and_keeps_earlier_demos(tmp_path: path
     assert second.returncode == 1
     assert "file-size limit" in second.stdout + second.stderr
     assert "saved before are intact" in second.stdout + second.stderr
+    # The summary counts what is on disk: the failed save is not "saved" (it said "1 saved this session").
+    assert "2 attempts, 0 saved this session (3 in" in second.stdout, second.stdout
     assert (out / "demos.hdf5").read_bytes() == before
     assert not list((out / "episodes").glob(".*.tmp")), "the partial file is removed"
     with open_dataset(out) as ds:

@@ -227,7 +227,10 @@ class Session:
         self.log = log or (lambda text: print(text, flush=True))
         for camera in config.cameras:
             check_camera(self.base.model, camera)
+        self.committed = 0
+        """demos handed to the writer this session (what the episode count is judged by)"""
         self.saved_this_session = 0
+        """demos the writer reported on disk (listed in an index that is on disk): what the summary says"""
         self.writer = open_writer(config.format, config.out, self.env, settings=config.settings(),
                                   device=config.device, cameras=config.cameras, image_size=config.image_size,
                                   on_saved=self._on_saved)
@@ -244,6 +247,7 @@ class Session:
         """Per step: its deadline, when the device was polled, when the step returned [s, perf_counter]."""
 
     def _on_saved(self, name: str, demo: Demo) -> None:
+        self.saved_this_session += 1  # only the writer's thread calls this
         self.log(f"saved {name}: {demo.num_samples} steps, seed {demo.attrs['seed']}"
                  f"{'' if demo.success else ' (failed, kept)'}")
 
@@ -274,7 +278,7 @@ class Session:
 
     def _collect(self) -> None:
         """Attempts until enough are saved or the operator quits."""
-        while not self.config.episodes or self.saved_this_session < self.config.episodes:
+        while not self.config.episodes or self.committed < self.config.episodes:
             attempt = self.attempt()
             self.attempts.append(attempt)
             if self.config.verbose or attempt.saved_as is None:
@@ -347,7 +351,7 @@ class Session:
             if self.writer.behind >= MAX_QUEUED:
                 self.log(f"saving is {self.writer.behind} demos behind; waiting for the writer")
             saved_as = self.writer.commit(demo)
-            self.saved_this_session += 1
+            self.committed += 1
         return Attempt(number, seed, t, success, ended_by, saved_as, achieved)
 
     def _show(self, number: int, step: int, info: dict[str, Any], held: int, command: Command) -> None:
