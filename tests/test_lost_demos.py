@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import pathlib
 import signal
 import subprocess
 import sys
+
+import pytest
 
 from fetch.cli import main
 from procs import alive, children, command_line
@@ -242,3 +245,25 @@ def test_generate_workers_die_with_a_killed_generate(reach_demos: pathlib.Path, 
     while any(alive(c) for c in started) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not [command_line(c) for c in started if alive(c)], "processes outlived a killed generate"
+
+
+@pytest.mark.parametrize("stdout", ["full", "head"])
+def test_a_failing_stdout_neither_hangs_the_collector_nor_loses_a_demo(tmp_path: pathlib.Path, stdout: str) -> None:
+    """`collect ... > /dev/full` and `collect ... | head -n 3` hung (the writer thread died printing
+    "saved ...", the session waited for it forever; 1 of 20 demos saved)."""
+    out = tmp_path / "demos"
+    command = (f"{sys.executable} -m fetch.cli collect --env Reach-v2 --device expert --episodes 20 --render none "
+               f"--out {out}")
+    shell = f"{command} > /dev/full" if stdout == "full" else f"{command} | head -n 3"
+    proc = subprocess.Popen(["bash", "-c", shell], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    try:
+        proc.wait(timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)  # the collector too, not only its shell
+        proc.wait()
+        raise AssertionError("the collector hung") from None
+    from fetch.dataset import open_dataset, validate
+
+    with open_dataset(out) as ds:
+        assert len(ds.demo_names) == 20 and validate(ds) == []

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import sys
 import threading
 import time
@@ -44,3 +45,14 @@ def said_if_slow(text: str, after: float = 1.0) -> Iterator[None]:
         yield
     finally:
         timer.cancel()
+
+
+def say(text: str) -> None:
+    """Print a line on stdout for a person; once stdout fails (its reader went away: `| head`; a full
+    disk: `> /dev/full`), go on without it. What is said is only news: the work, and saving it, must not
+    stop because nobody reads it (the collector hung, its writer thread dead on the error)."""
+    try:
+        print(text, flush=True)
+    except (BrokenPipeError, OSError):
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

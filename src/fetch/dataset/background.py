@@ -3,6 +3,7 @@ order behind it, at most `MAX_QUEUED` wait, a failure stops saving and is raised
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import pathlib
@@ -143,7 +144,8 @@ class BackgroundWriter:
         for name, demo in batch:
             self.saved += 1
             if self.on_saved is not None:
-                self.on_saved(name, demo)
+                with contextlib.suppress(Exception):  # the demo is saved; only the news of it failed
+                    self.on_saved(name, demo)
             self._complete_safely(name, demo)
 
     def _publish_due(self, unpublished: int) -> bool:

@@ -12,6 +12,7 @@ import gymnasium as gym
 import numpy as np
 
 import fetch
+from fetch._progress import say
 from fetch.dataset.background import MAX_QUEUED
 from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.formats import check_format, open_writer, recorded_layout
@@ -224,7 +225,7 @@ class Session:
         self.base = cast(Any, self.env.unwrapped)  # a FetchEnv
         self.device = device
         self.display = display
-        self.log = log or (lambda text: print(text, flush=True))
+        self.log = log or say
         for camera in config.cameras:
             check_camera(self.base.model, camera)
         self.committed = 0
