@@ -120,6 +120,11 @@ def carry_stage(expert: Any) -> Stage | None:
     return contact_stage(expert)
 
 
+SIDE_LAG = 4
+"""[ticks] the longest reaction lag of a style: a side approach counts the hand as standing on something
+only after this many ticks of going down and 6 more without moving."""
+
+
 def contact_point(expert: Any, obs: Any) -> np.ndarray | None:
     """[m] where the grip site goes for the key contact, as the expert computes it (None: no such point)."""
     if isinstance(expert, PickAndPlace):
@@ -194,6 +199,7 @@ class Operator:
                 self._held[button] -= 1
 
     def _hands_off(self) -> Any:
+        self._side_heights: list[float] = []  # a hand at rest is not one standing on something
         self.pad.set_stick(0.0, 0.0)
         self.pad.set_triggers(0.0, 0.0)
         if "rightshoulder" in self._held:
@@ -296,8 +302,12 @@ class Operator:
             return None
         grip = self.expert.part(view, "grip_pos")
         height = point[2] + 0.06
-        if abs(grip[2] - height) < 0.01:
+        self._side_heights = [*getattr(self, "_side_heights", [])[-(SIDE_LAG + 5):], float(grip[2])]
+        recent = self._side_heights[-6:]
+        blocked = len(self._side_heights) > SIDE_LAG + 5 and np.ptp(recent) < 0.002
+        if abs(grip[2] - height) < 0.01 or blocked:  # there, or standing on something (a cabinet's top): go over
             self.side = False
+            self._side_heights = []
             return None
         return np.array([0.0, 0.0, np.clip(self.expert.gain * (height - grip[2]) / 0.05, -1.0, 1.0)])
 
