@@ -202,3 +202,25 @@ def test_a_killed_minari_export_leaves_the_old_dataset_or_the_new_one(tmp_path: 
     assert sorted(code for code, _ in results) in ([0, 0], [0, 2]), results
     assert all("in use by another" in err for code, err in results if code == 2), results
     assert episodes() in (3, 30)
+
+
+def test_two_tools_never_edit_one_merged_file_at_once(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """render-obs and split on one merged file at the same moment shared a temporary file and no lock
+    (5 of 6 crashed; once a demo's images leaked into the file): the second is refused while the first
+    edits, and goes ahead once it is done."""
+    from fetch.dataset.durable import editing
+
+    merged = tmp_path / "all.hdf5"
+    other = tmp_path / "other"
+    shutil.copytree(reach_demos, other)
+    assert main(["merge", str(reach_demos), str(other), "--out", str(merged)]) == 0
+    before = merged.read_bytes()
+    capsys.readouterr()
+    with editing(merged):  # another tool is editing it
+        for command in (["split", str(merged)], ["render-obs", str(merged), "--camera", "front", "--size", "16"]):
+            assert main(command) == 2
+            err = capsys.readouterr().err.strip()
+            assert len(err.splitlines()) == 1 and "is being edited by another tool" in err, err
+    assert merged.read_bytes() == before
+    assert main(["split", str(merged), "--seed", "3"]) == 0

@@ -72,16 +72,32 @@ def unlock_directory(handle: Any) -> None:
 
 @contextlib.contextmanager
 def editing(index: pathlib.Path) -> Iterator[None]:
-    """Hold a collector's directory (it has `episodes/` beside `index`) while a tool reads and edits
-    it, so no collector appends meanwhile; a single-file dataset needs no lock."""
-    if not (index.parent / schema.EPISODES_DIR).is_dir():
-        yield
-        return
-    handle = lock_directory(index.parent, "run it when the collector has finished")
+    """Hold a dataset while a tool reads and edits it: a collector's directory (it has `episodes/` beside
+    `index`) itself, so no collector appends meanwhile; a single file (a merge's) by a lock file beside it
+    (`.<name>.lock`), which outlives the file's replacement, so two tools never edit it at once (render-obs
+    and split on one merged file shared a temporary file: 5 of 6 crashed, once leaking images into it)."""
+    if (index.parent / schema.EPISODES_DIR).is_dir():
+        handle = lock_directory(index.parent, "run it when the collector has finished")
+    else:
+        handle = _lock_file(index.with_name(f".{index.name}.lock"), index)
     try:
         yield
     finally:
         unlock_directory(handle)
+
+
+def _lock_file(lock: pathlib.Path, dataset: pathlib.Path) -> Any:
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as e:
+        raise DatasetError(f"cannot lock {dataset} for editing ({lock}: {e.strerror})") from e
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as e:
+        os.close(fd)
+        raise DatasetError(f"{dataset} is being edited by another tool (it holds {lock.name}); wait for it to "
+                           "finish") from e
+    return fd
 
 
 class Rewrites:
