@@ -81,3 +81,18 @@ def test_the_directory_you_are_in_is_never_replaced(reach: pathlib.Path, tmp_pat
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and "is the directory you are in, or holds it" in err, err
     assert (here / "keep.txt").read_text() == "mine" and sorted(p.name for p in tmp_path.iterdir()) == ["work"]
+
+
+def test_a_directory_a_killed_replacement_set_aside_is_put_back(tmp_path: pathlib.Path) -> None:
+    """Killed between its two renames, a --force replacement (view, the LeRobot and Minari exports) left
+    the old directory only as a hidden `.<name>.replaced`, which the next replacement deleted first."""
+    from fetch.dataset.dirs import replacing_dir
+    from fetch.errors import DatasetError
+
+    aside = tmp_path / ".page.replaced"
+    aside.mkdir()
+    (aside / "index.html").write_text("the old page")
+    with pytest.raises(DatasetError, match="already exists and is not empty"), \
+            replacing_dir(tmp_path / "page", force=False):
+        pass
+    assert (tmp_path / "page" / "index.html").read_text() == "the old page" and not aside.exists()

@@ -19,13 +19,15 @@ def replacing_dir(target: pathlib.Path, force: bool, what: str = "--out") -> Ite
 
     An existing non-empty `target` is an error unless `force`; then it is set aside and deleted only
     after the new one is in place. An error (or Ctrl-C) removes the new directory; a SIGKILL leaves
-    it under its hidden name (`.<name>.partial`), which the next run removes, and `target` untouched.
+    it under its hidden name (`.<name>.partial`), which the next run removes, and `target` untouched
+    (or, killed between the two renames, set aside: `recover_replaced` puts it back first).
     """
     given, target = target, pathlib.Path(target).resolve()
     here = pathlib.Path.cwd().resolve()
     if target == here or target in here.parents:
         raise DatasetError(f"{what} {given} is the directory you are in, or holds it; it cannot be replaced "
                            f"while in use: give a new directory, e.g. {what} report")
+    recover_replaced(target)
     if target.exists() and not target.is_dir():
         raise DatasetError(f"{what} {target} is a file; give a directory")
     if target.is_dir() and any(target.iterdir()) and not force:
@@ -57,6 +59,16 @@ def replacing_dir(target: pathlib.Path, force: bool, what: str = "--out") -> Ite
         shutil.rmtree(building, ignore_errors=True)
         raise
     shutil.rmtree(aside, ignore_errors=True)
+
+
+def recover_replaced(target: pathlib.Path) -> None:
+    """Put back what a replacement killed between its two renames set aside (`.<name>.replaced`, with no
+    `target`): the old directory, whole; an aside left beside a `target` in place is deleted."""
+    aside = target.with_name(f".{target.name}.replaced")
+    if aside.is_dir() and not target.exists():
+        aside.rename(target)
+    else:
+        shutil.rmtree(aside, ignore_errors=True)
 
 
 def dataset_extent(path: str | os.PathLike[str]) -> pathlib.Path:

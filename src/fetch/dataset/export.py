@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset import npz, schema
-from fetch.dataset.dirs import require_apart
+from fetch.dataset.dirs import recover_replaced, replacing_dir, require_apart
 from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
 from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset, require_valid
@@ -145,36 +145,27 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
             raise DatasetError(f"cannot create {target.parent} for the Minari dataset: {e}") from e
         handle = lock_directory(target.parent, "export under another --dataset-id")
         try:
-            _recover_replaced(target)
+            recover_replaced(target)  # before the check: a dataset a killed --force export set aside is there
             if target.exists() and not force:
                 raise DatasetError(f"a Minari dataset {dataset_id!r} already exists at {target}; choose another id "
                                    "(e.g. the next version, -v1) or pass --force to replace it")
-            steps = _staged_minari(minari, root, dataset_id, ds, chosen, spec, eval_spec, metadata)
+            with replacing_dir(target, force=True, what=f"the Minari dataset {dataset_id!r}") as building:
+                steps = _staged_minari(minari, root, dataset_id, ds, chosen, spec, eval_spec, metadata, building)
         finally:
             unlock_directory(handle)
     return Exported(path=target, demos=tuple(chosen), steps=steps)
 
 
-def _recover_replaced(target: pathlib.Path) -> None:
-    """Put back a dataset that a killed `--force` export set aside (`.<name>.replaced`) and never replaced."""
-    aside = target.with_name(f".{target.name}.replaced")
-    if aside.is_dir() and not target.exists():
-        aside.rename(target)
-    else:
-        shutil.rmtree(aside, ignore_errors=True)
-
-
 def _staged_minari(minari: Any, root: pathlib.Path, dataset_id: str, ds: Dataset, chosen: dict[str, dict[str, Any]],
-                   spec: Any, eval_spec: Any, metadata: dict[str, Any]) -> int:
-    """Write the dataset under a hidden staging root beside the others (Minari lists no hidden
-    directory), then swap it in whole: a kill at any instant leaves the old dataset or the new one
-    under `dataset_id`, never a part (a killed export left a broken dataset there in 4 of 8 trials)."""
+                   spec: Any, eval_spec: Any, metadata: dict[str, Any], building: pathlib.Path) -> int:
+    """Write the dataset into `building` (`dirs.replacing_dir` swaps it in whole: a kill at any instant
+    leaves the old dataset or the new one under its id, never a part; a killed export left a broken
+    dataset there in 4 of 8 trials). Minari writes under $MINARI_DATASETS_PATH/<id>, so it writes under
+    a hidden staging root beside the others (Minari lists no hidden directory), moved into `building`."""
     import gymnasium as gym
 
-    target = root / dataset_id
     staging = root / f".partial-{dataset_id.replace('/', '--')}"
     shutil.rmtree(staging, ignore_errors=True)  # what a killed export left
-    aside = target.with_name(f".{target.name}.replaced")
     before = os.environ.get("MINARI_DATASETS_PATH")
     env = gym.make(spec)
     try:
@@ -186,19 +177,10 @@ def _staged_minari(minari: Any, root: pathlib.Path, dataset_id: str, ds: Dataset
                 os.environ.pop("MINARI_DATASETS_PATH", None)
             else:
                 os.environ["MINARI_DATASETS_PATH"] = before
-        raise_if_stopped()  # a stop whose exception was swallowed: nothing is replaced
-        if target.exists():
-            target.rename(aside)
-        try:
-            (staging / dataset_id).rename(target)
-        except BaseException:
-            if aside.exists() and not target.exists():
-                aside.rename(target)
-            raise
+        (staging / dataset_id).rename(building)  # onto the empty directory
     finally:
         env.close()
         shutil.rmtree(staging, ignore_errors=True)
-    shutil.rmtree(aside, ignore_errors=True)
     return steps
 
 
