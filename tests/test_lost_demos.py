@@ -88,7 +88,6 @@ def test_render_workers_die_with_a_killed_collector(tmp_path: pathlib.Path) -> N
 def test_the_collector_replaces_a_render_worker_that_dies(tmp_path: pathlib.Path) -> None:
     """Its camera images are rendered in a worker process after each demo is saved: a worker killed
     (as the out-of-memory killer would) is replaced, and every demo still gets its images."""
-    import os
     import time
 
     from fetch.dataset import open_dataset, validate

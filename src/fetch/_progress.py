@@ -53,6 +53,14 @@ def say(text: str) -> None:
     stop because nobody reads it (the collector hung, its writer thread dead on the error)."""
     try:
         print(text, flush=True)
-    except (BrokenPipeError, OSError):
-        with contextlib.suppress(OSError):
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except OSError:  # BrokenPipeError, ENOSPC
+        stdout_gone()
+
+
+def stdout_gone() -> None:
+    """Point stdout at /dev/null: its reader went away, or it cannot be written; later lines (and the
+    interpreter's flush at exit) then fail no more."""
+    with contextlib.suppress(OSError):
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)

@@ -6,12 +6,13 @@ import argparse
 import collections
 import contextlib
 import math
-import os
 import pathlib
 import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
+
+from fetch._progress import stdout_gone
 
 Command = Callable[[argparse.Namespace], int]
 
@@ -382,7 +383,7 @@ def _run(args: argparse.Namespace, prog: str | None = None) -> int:
         stop = _stop_behind(e)
         if stop is not None:
             return _stopped(stop)
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        stdout_gone()
         return 1
 
 

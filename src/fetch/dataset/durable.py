@@ -53,13 +53,18 @@ def lock_directory(directory: pathlib.Path, alternative: str) -> Any:
     """Hold `directory` itself exclusively (an flock on the directory, until `unlock_directory`);
     DatasetError if another collector or tool holds it. `alternative` completes the message
     ("choose another --out"). A lock on a file inside could be bypassed by deleting the file."""
-    fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
+    return _held(os.open(directory, os.O_RDONLY | os.O_DIRECTORY),
+                 f"{directory} is in use by another collector or tool (it holds the directory's lock); wait for "
+                 f"it to finish or {alternative}")
+
+
+def _held(fd: int, refusal: str) -> int:
+    """`fd`, locked exclusively; DatasetError(`refusal`) (and `fd` closed) if another process holds it."""
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as e:
         os.close(fd)
-        raise DatasetError(f"{directory} is in use by another collector or tool (it holds the directory's lock); "
-                           f"wait for it to finish or {alternative}") from e
+        raise DatasetError(refusal) from e
     return fd
 
 
@@ -91,13 +96,7 @@ def _lock_file(lock: pathlib.Path, dataset: pathlib.Path) -> Any:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as e:
         raise DatasetError(f"cannot lock {dataset} for editing ({lock}: {e.strerror})") from e
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as e:
-        os.close(fd)
-        raise DatasetError(f"{dataset} is being edited by another tool (it holds {lock.name}); wait for it to "
-                           "finish") from e
-    return fd
+    return _held(fd, f"{dataset} is being edited by another tool (it holds {lock.name}); wait for it to finish")
 
 
 class Rewrites:

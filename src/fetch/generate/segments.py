@@ -38,8 +38,9 @@ class Segment:
     steps: np.ndarray | None = None
     """(L,) the source demo's step each replayed step ends at (None: `start` to `end`, every one)."""
     settle: np.ndarray | None = None
-    """[m, world] the last segment of a task whose last subtask is anchored at the goal: what would have
-    moved the source's achieved goal onto its desired goal at its end (desired - achieved). A person
+    """[m, world] the last segment of a task whose last segment carries its object (grasped or hooked
+    before it): what would have moved the source's achieved goal onto its desired goal at its end
+    (desired - achieved). A person
     stops once success shows, with the object at the edge of the success region; replayed, the
     segment closes that gap, so generated demos end with the object at the goal."""
     settle_by: int | None = None
@@ -128,9 +129,9 @@ def annotate(base: Any, subtasks: tuple[Subtask, ...], states: np.ndarray,
             frames[tracker.current] = subtasks[tracker.current].frame(scene, base.data)
     squeeze = None if grips is None else np.asarray(grips) <= SQUEEZE
     for k in range(len(subtasks) - 1):
-        moved = _redone(base, subtasks[k], scene, states, labels, k, held) if squeeze is None \
-            else _regrasped(base, subtasks[k], scene, states, labels, k, squeeze) \
-            or _redone(base, subtasks[k], scene, states, labels, k, held)
+        moved = None if squeeze is None else _regrasped(base, subtasks[k], scene, states, labels, k, squeeze)
+        if moved is None:
+            moved = _redone(base, subtasks[k], scene, states, labels, k, held)
         if moved is not None:
             labels[np.flatnonzero(labels == k + 1)[0]:moved] = k
             base.set_state(states[moved])
