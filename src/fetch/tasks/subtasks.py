@@ -65,6 +65,22 @@ class Scene:
     def grip_pos(self, data: mujoco.MjData) -> np.ndarray:
         return data.site_xpos[self.grip].copy()
 
+    def loose(self, site: str) -> tuple[float, float] | None:
+        """[m] the extent of the body that carries `site` around it, if that body is loose (a free
+        joint: a block, a lid, what the hand can drag or knock over): its radius in xy and its height
+        above the site, upright; None for fixed or jointed parts (a drawer, a cabinet) and the goal."""
+        if site == GOAL:
+            return None
+        m = self.model
+        body = int(m.site_bodyid[self.site(site)])
+        if m.body_jntnum[body] != 1 or m.jnt_type[int(m.body_jntadr[body])] != mujoco.mjtJoint.mjJNT_FREE:
+            return None
+        geoms = np.flatnonzero(m.geom_bodyid == body)
+        offset = m.geom_pos[geoms] + m.geom_aabb[geoms, :3] - m.site_pos[self.site(site)]
+        half = m.geom_aabb[geoms, 3:]
+        radius = np.linalg.norm(offset[:, :2], axis=1) + np.linalg.norm(half[:, :2], axis=1)
+        return float(radius.max(initial=0.0)), float((offset[:, 2] + half[:, 2]).max(initial=0.0))
+
     def touching(self, data: mujoco.MjData, body: str) -> tuple[bool, bool]:
         """Whether each finger (right, left) is in contact with a geom of `body`."""
         target = self.body(body)
