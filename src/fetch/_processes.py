@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import concurrent.futures
+import contextlib
 import os
+import signal
 import threading
 import time
+from collections.abc import Iterator
 
 
 def exit_with_parent(parent: int, period: float = 0.5) -> None:
@@ -18,3 +22,41 @@ def exit_with_parent(parent: int, period: float = 0.5) -> None:
         os._exit(1)
 
     threading.Thread(target=watch, name="fetch-exit-with-parent", daemon=True).start()
+
+
+@contextlib.contextmanager
+def workers_deaf_to_ctrl_c() -> Iterator[None]:
+    """Around whatever may start a pool's workers (a submit): SIGINT blocked in this thread, so that
+    the workers start with it blocked (a signal mask survives fork and exec) until `start_worker`
+    ignores it; a Ctrl-C while a worker imports would otherwise end it with a traceback. This thread's
+    own Ctrl-C is only delayed: Python takes signals in the main thread, once unblocked."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def start_worker(parent: int) -> None:
+    """What a pool's worker does first: end with its parent (`exit_with_parent`), and leave Ctrl-C to
+    it. A terminal's Ctrl-C goes to the whole process group; a worker that raised it mid-job sent a
+    KeyboardInterrupt back through its job's future, which ended the collector's writer thread, and
+    the collector waited for it forever (4 of 5 group Ctrl-Cs of `collect --cameras`). The parent
+    stops its workers when it stops."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked by workers_deaf_to_ctrl_c
+    exit_with_parent(parent)
+
+
+def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> None:
+    """Shut a pool of workers down; with `abandon` (jobs still running whose results are not wanted),
+    terminate its workers rather than wait for them. A worker that finishes a job while the pool
+    shuts down writes its result to a pipe that nothing reads any more, and waits there for good, and
+    so does the interpreter's exit, which joins it (a double Ctrl-C hung `render-obs` and `generate`)."""
+    workers = list((getattr(pool, "_processes", None) or {}).values())  # private: CPython 3.8-3.13
+    pool.shutdown(wait=not abandon, cancel_futures=True)
+    if abandon:
+        for worker in workers:
+            worker.terminate()
+        for worker in workers:
+            worker.join(timeout=5)

@@ -120,7 +120,7 @@ class BackgroundWriter:
                     except OSError as e:
                         self.error = DatasetError(self._describe(name, e))
                         continue
-                    except Exception as e:  # a bug must not end the thread silently
+                    except BaseException as e:  # a bug (or a worker's KeyboardInterrupt) must not end the thread
                         self.error = e
                         continue
                     self._unpublished.append((name, demo))
@@ -138,7 +138,7 @@ class BackgroundWriter:
         except OSError as e:
             self.error = DatasetError(self._describe(batch[0][0], e))
             return
-        except Exception as e:
+        except BaseException as e:
             self.error = e
             return
         for name, demo in batch:
@@ -160,7 +160,7 @@ class BackgroundWriter:
             self._complete(name, demo)
         except OSError as e:
             self.error = DatasetError(self._describe(name, e))
-        except Exception as e:
+        except BaseException as e:  # a KeyboardInterrupt from a worker comes back through its future
             self.error = e
 
     def _complete(self, name: str, demo: Demo | None) -> None:

@@ -19,7 +19,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fetch._processes import exit_with_parent
+from fetch._processes import start_worker, stop_pool, workers_deaf_to_ctrl_c
 from fetch.errors import FetchError
 
 
@@ -89,7 +89,7 @@ _process_renderer: list[StateRenderer] = []
 
 
 def _start_process(env_id: str, env_kwargs: dict[str, Any], size: int, nice: int, parent: int) -> None:
-    exit_with_parent(parent)
+    start_worker(parent)
     # Software GL (llvmpipe) starts a thread per core in every process; one thread each keeps
     # parallel workers (and a collector's control loop) from contending, unless the user says otherwise.
     os.environ.setdefault("LP_NUM_THREADS", "1")
@@ -118,6 +118,7 @@ class RenderPool:
         # pool for good: its shutdown waits for a thread stuck writing to the dead worker.
         self._dir = pathlib.Path(tempfile.mkdtemp(prefix="fetch-render-"))
         self._jobs = itertools.count()
+        self._futures: set[concurrent.futures.Future[dict[str, np.ndarray]]] = set()  # not yet done
 
     def _start(self) -> concurrent.futures.ProcessPoolExecutor:
         return concurrent.futures.ProcessPoolExecutor(
@@ -133,11 +134,15 @@ class RenderPool:
         """Images of every state, per camera ((N, size, size, 3) uint8), when the future is done."""
         path = self._dir / f"{next(self._jobs)}.npy"
         np.save(path, states)
-        return self._pool.submit(_render_in_process, str(path), tuple(cameras))
+        with workers_deaf_to_ctrl_c():
+            future = self._pool.submit(_render_in_process, str(path), tuple(cameras))
+        self._futures.add(future)
+        future.add_done_callback(self._futures.discard)
+        return future
 
     def close(self) -> None:
         try:
-            self._pool.shutdown(wait=True, cancel_futures=True)
+            stop_pool(self._pool, abandon=any(not f.done() for f in list(self._futures)))
         finally:
             shutil.rmtree(self._dir, ignore_errors=True)
 

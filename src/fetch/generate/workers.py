@@ -13,11 +13,10 @@ import dataclasses
 import itertools
 import multiprocessing
 import os
-import signal
 from collections.abc import Iterator
 from typing import Any, Protocol
 
-from fetch._processes import exit_with_parent
+from fetch._processes import start_worker, stop_pool, workers_deaf_to_ctrl_c
 from fetch.errors import FetchError, install_hint
 from fetch.generate.attempt import Generator, Options, Result
 from fetch.generate.sources import Sources
@@ -75,9 +74,7 @@ _worker: Generator | None = None
 
 def _init_worker(work: Work, nice: int, parent: int) -> None:
     global _worker
-    exit_with_parent(parent)
-    # Ctrl-C reaches the whole process group: the driver stops the pool and finishes the saves.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    start_worker(parent)  # Ctrl-C reaches the whole process group: the driver stops the pool
     if nice:
         os.nice(nice)
     _worker = work.generator()
@@ -108,11 +105,14 @@ class Pool:
             initargs=(work, nice, os.getpid()))
 
     def results(self, first: int) -> Iterator[Result]:
-        return _ordered(lambda start, n: self.executor.submit(_run_chunk, start, n),
-                        lambda future: future.result(), self.workers, first)
+        return _ordered(self._submit, lambda future: future.result(), self.workers, first)
+
+    def _submit(self, start: int, n: int) -> concurrent.futures.Future[list[Result]]:
+        with workers_deaf_to_ctrl_c():
+            return self.executor.submit(_run_chunk, start, n)
 
     def close(self) -> None:
-        self.executor.shutdown(wait=True, cancel_futures=True)
+        stop_pool(self.executor, abandon=True)  # the chunks still in flight are not wanted
 
 
 class RayCluster:
