@@ -405,7 +405,7 @@ class Thing:
 
 def swallowed_ctrl_c():
     # Ctrl-C lands while a weakref callback runs: Python prints the handler's exception as
-    # "Exception ignored in ..." and the tool carries on.
+    # "Exception ignored in ..." and the tool carries on, unless the stop is delivered again.
     thing = Thing()
     ref = weakref.ref(thing, lambda _: os.kill(os.getpid(), signal.SIGINT))
     del thing
@@ -427,7 +427,8 @@ sys.exit(cli.main(sys.argv[1:]))
 def test_a_stop_whose_exception_python_swallowed_still_stops_the_tool_and_changes_nothing(
         made: dict[str, pathlib.Path], tmp_path: pathlib.Path, tool: str) -> None:
     """A Ctrl-C whose `Stopped` Python swallowed (raised in a weakref callback or `__del__`) still stops an
-    editing or exporting tool with 130 before it replaces anything; it used to finish and exit 0."""
+    editing or exporting tool with 130 before it replaces anything (it used to finish and exit 0), and
+    no "Exception ignored" traceback is printed (`stopping._dropped` delivers it again)."""
     import subprocess
     import sys
 
@@ -441,7 +442,7 @@ def test_a_stop_whose_exception_python_swallowed_still_stops_the_tool_and_change
             "export npz": ["export", str(ds), "--to", "npz", "--out", str(out)]}[tool]
     proc = subprocess.run([sys.executable, "-c", SWALLOWED_IN_TOOL, *args], capture_output=True, text=True,
                           timeout=300)
-    assert "Exception ignored in" in proc.stderr  # the swallowing happened
+    assert "Exception ignored in" not in proc.stderr  # not printed: delivered again once out of the callback
     assert proc.returncode == 130, proc.stderr
     assert {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()} == before
     assert not list(out.iterdir())

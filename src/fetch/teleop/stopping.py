@@ -5,9 +5,11 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from types import FrameType
+from typing import Any
 
 from fetch._environ import environ
 
@@ -30,9 +32,15 @@ class _State:
     """the stop signal received and not yet acted on."""
     handled = False
     """the stop is being acted on (the saves are being finished)."""
+    hook: Any = sys.unraisablehook
+    """the unraisable-exception hook to restore, and to pass what is not a stop to."""
 
 
 _STATE = _State()
+
+
+REDELIVER = 0.02
+"""[s] after which a stop whose exception Python dropped is delivered again."""
 
 
 def _stop(signum: int, frame: FrameType | None) -> None:
@@ -42,6 +50,19 @@ def _stop(signum: int, frame: FrameType | None) -> None:
     _STATE.requested = signum
     if not _STATE.polled:
         raise Stopped(signum)
+
+
+def _dropped(unraisable: Any) -> None:
+    """`sys.unraisablehook` while stopping on signals: a `Stopped` raised in a weakref callback or a
+    `__del__` is dropped by Python (printed as "Exception ignored in ..."), and the tool would carry on
+    as if no Ctrl-C had come (a group Ctrl-C in `render-obs`, 1 of 12). The signal is delivered again
+    once out of it; anything else goes to the hook before."""
+    if isinstance(unraisable.exc_value, Stopped) and not _STATE.handled:
+        timer = threading.Timer(REDELIVER, os.kill, (os.getpid(), unraisable.exc_value.signum))
+        timer.daemon = True
+        timer.start()
+        return
+    _STATE.hook(unraisable)
 
 
 def raise_if_stopped() -> None:
@@ -84,12 +105,16 @@ def stop_on_signals() -> Iterator[None]:
     if outermost:
         _STATE.requested, _STATE.handled = None, False
     old = {s: signal.signal(s, _stop) for s in STOP_SIGNALS}
+    if outermost:
+        _STATE.hook, sys.unraisablehook = sys.unraisablehook, _dropped
     _STATE.depth += 1
     try:
         with environ(overwrite=True, SDL_NO_SIGNAL_HANDLERS="1"):  # read when pygame starts SDL
             yield
     finally:
         _STATE.depth -= 1
+        if outermost:
+            sys.unraisablehook = _STATE.hook
         if _STATE.requested is None:
             # After a stop the handlers stay: the process is on its way out, and a second Ctrl-C
             # arriving while it prints the summary or exits would otherwise end it with a traceback.
