@@ -102,3 +102,25 @@ def test_human_window_under_xvfb_and_full_check_env() -> None:
     # The viewer paces to real time: 10 steps of 0.04 s take at least ~0.4 s.
     assert float(lines["ELAPSED"]) >= 0.35
     assert lines["OTHER"] == "[]"
+
+
+def test_a_render_pool_removes_the_directories_that_killed_processes_left(tmp_path, monkeypatch) -> None:  # noqa: ANN001
+    """A SIGKILLed process runs no cleanup and left its render pool's directory in $TMPDIR every time;
+    the next pool removes those whose process is gone, and leaves a running process's alone."""
+    import tempfile
+
+    from fetch.dataset.frames import DIR_PREFIX, RenderPool
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True, check=True)
+    stale = tmp_path / f"{DIR_PREFIX}{int(gone.stdout)}-abc"
+    running = tmp_path / f"{DIR_PREFIX}{os.getppid()}-def"
+    other = tmp_path / f"{DIR_PREFIX}notapid"
+    for d in (stale, running, other):
+        d.mkdir()
+        (d / "0.npy").write_bytes(b"x")
+    with RenderPool("Reach-v2", {}, 16, workers=1) as pool:
+        assert pool._dir.parent == tmp_path and pool._dir.name.startswith(f"{DIR_PREFIX}{os.getpid()}-")
+        assert not stale.exists() and running.exists() and other.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([running.name, other.name])

@@ -106,6 +106,25 @@ def _render_in_process(path: str, cameras: Sequence[str]) -> dict[str, np.ndarra
     return {camera: renderer.frames(states, camera) for camera in cameras}
 
 
+DIR_PREFIX = "fetch-render-"
+"""A render pool's directory in $TMPDIR: this, then the pid of the process that made it."""
+
+
+def _remove_stale_dirs() -> None:
+    """Remove the directories that render pools of processes no longer running left in $TMPDIR (a
+    SIGKILLed process runs no cleanup; before, every kill left one)."""
+    for stale in pathlib.Path(tempfile.gettempdir()).glob(f"{DIR_PREFIX}*-*"):
+        pid = stale.name[len(DIR_PREFIX):].split("-", 1)[0]
+        if not pid.isdigit():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(stale, ignore_errors=True)
+        except OSError:  # another user's process, still running
+            continue
+
+
 class RenderPool:
     """`workers` processes that render states to square `size` images; `nice` lowers their priority."""
 
@@ -116,7 +135,8 @@ class RenderPool:
         # demo's states fill that pipe (64 KiB), and on a Python without the fix for CPython gh-94777
         # (Debian 12's 3.11.2 is one) a worker that dies while the pool writes to it deadlocks the
         # pool for good: its shutdown waits for a thread stuck writing to the dead worker.
-        self._dir = pathlib.Path(tempfile.mkdtemp(prefix="fetch-render-"))
+        _remove_stale_dirs()
+        self._dir = pathlib.Path(tempfile.mkdtemp(prefix=f"{DIR_PREFIX}{os.getpid()}-"))
         self._jobs = itertools.count()
         self._futures: set[concurrent.futures.Future[dict[str, np.ndarray]]] = set()  # not yet done
 
