@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+import fetch.learn.device  # noqa: F401  (registers --device policy)
 from fetch.cli import _parser as build_parser
 from fetch.errors import UnknownNameError
 from fetch.teleop.devices import DeviceKind
@@ -60,7 +61,8 @@ def test_the_cli_offers_exactly_the_registered_devices_and_their_flags() -> None
     collect = next(a for a in parser._subparsers._group_actions  # type: ignore[union-attr]
                    if isinstance(a, argparse._SubParsersAction)).choices["collect"]
     device = next(a for a in collect._actions if a.dest == "device")
-    assert tuple(device.choices) == DEVICE_NAMES  # type: ignore[arg-type]
+    assert list(device.choices) == DEVICE_NAMES  # type: ignore[arg-type]
+    assert "policy" in DEVICE_NAMES  # registered by fetch.learn.device, a layer above
     dests = {a.dest for a in collect._actions}
     assert {"policy", "scripted_json", "profile", "frame"} <= dests  # each device's own flags
 

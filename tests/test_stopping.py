@@ -127,7 +127,7 @@ def test_an_error_while_winding_down_after_a_stop_still_exits_as_the_stop(then, 
 SWALLOWED_STOP = """
 import os, pathlib, signal, sys, weakref
 from fetch.dataset.dirs import replacing_dir
-from fetch.teleop.stopping import Stopped, stop_on_signals
+from fetch.stopping import Stopped, stop_on_signals
 
 target = pathlib.Path(sys.argv[1])
 

@@ -20,6 +20,7 @@ Command = Callable[[argparse.Namespace], int]
 def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     """The collector's flags: the seed script's (same names and meaning) plus ours."""
     from fetch.dataset.formats import FORMATS
+    from fetch.learn import device as _  # noqa: F401  (registers --device policy, from the layer above teleop)
     from fetch.tasks import ENV_IDS
     from fetch.teleop.registry import DEVICE_NAMES, KINDS
     from fetch.teleop.session import RENDER_CHOICES
@@ -71,7 +72,7 @@ def run_collect(args: argparse.Namespace) -> int:
     import fetch  # noqa: F401  (registers the ids)
     from fetch.teleop import build
 
-    # main() and collect_main() hold the stop handlers (fetch.teleop.stopping) around this.
+    # main() and collect_main() hold the stop handlers (fetch.stopping) around this.
     session = build.session_from_args(args)
     summary = session.run()
     print(summary.describe(), flush=True)
@@ -339,7 +340,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from fetch.teleop.stopping import stop_on_signals
+    from fetch.stopping import stop_on_signals
 
     with stop_on_signals():  # from the start: a Ctrl-C or SIGTERM while loading ends cleanly too
         try:
@@ -355,7 +356,7 @@ def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_d
                                 "every flag with its meaning; the same as `gym-fetch collect`.")
     add_collect_arguments(p)
     p.set_defaults(run=run_collect, command="collect")
-    from fetch.teleop.stopping import stop_on_signals
+    from fetch.stopping import stop_on_signals
 
     with stop_on_signals():
         return _run(p.parse_args(argv), prog)

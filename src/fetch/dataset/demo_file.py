@@ -10,7 +10,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from fetch.dataset.durable import atomic_write
+from fetch._durable import atomic_write
 from fetch.dataset.episode import Demo
 
 

@@ -10,7 +10,7 @@ import shutil
 from collections.abc import Iterable, Iterator
 
 from fetch.errors import DatasetError
-from fetch.teleop.stopping import raise_if_stopped
+from fetch.stopping import raise_if_stopped
 
 
 @contextlib.contextmanager

@@ -17,14 +17,15 @@ from typing import Any
 import h5py
 import numpy as np
 
+from fetch._durable import replacing
 from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.dirs import require_apart
-from fetch.dataset.durable import editing, replacing, rewritten
+from fetch.dataset.durable import editing, rewritten
 from fetch.dataset.reader import Dataset, open_dataset, require_valid, resolve
 from fetch.dataset.writer import package_versions
 from fetch.errors import DatasetError, FetchError
-from fetch.teleop.stopping import raise_if_stopped
+from fetch.stopping import raise_if_stopped
 
 SAME = ("env_id", "env_kwargs", "layout", "model_hash")
 """What datasets must share to be merged: the task, the arrays, and the model the states belong to."""

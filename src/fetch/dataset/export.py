@@ -19,7 +19,7 @@ from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
 from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset, require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError, install_hint
-from fetch.teleop.stopping import raise_if_stopped
+from fetch.stopping import raise_if_stopped
 
 FORMATS = ("minari", "npz", "lerobot")
 SELECTIONS = ("successful", "all")
@@ -257,8 +257,8 @@ def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
     import gymnasium as gym
 
     import fetch  # noqa: F401  (registers the ids)
+    from fetch._durable import atomic_write
     from fetch._progress import progress
-    from fetch.dataset.writer import atomic_write
 
     out = pathlib.Path(out_dir)
     require_apart(out, [ds_path])

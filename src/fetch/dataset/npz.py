@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
+from fetch._durable import atomic_write
 from fetch.dataset import schema
 from fetch.dataset.background import BackgroundWriter
-from fetch.dataset.durable import atomic_write
 from fetch.dataset.episode import Demo
 from fetch.dataset.replay import ReplayCheck, resimulate
 from fetch.errors import DatasetError

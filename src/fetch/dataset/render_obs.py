@@ -24,7 +24,7 @@ from fetch.dataset.durable import Rewrites, editing
 from fetch.dataset.reader import open_dataset, require_valid, resolve
 from fetch.errors import FetchError
 from fetch.rendering import check_image_size
-from fetch.teleop.stopping import raise_if_stopped
+from fetch.stopping import raise_if_stopped
 
 
 @dataclasses.dataclass(frozen=True)

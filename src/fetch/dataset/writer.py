@@ -24,10 +24,10 @@ from typing import TYPE_CHECKING, Any
 import h5py
 import numpy as np
 
+from fetch._durable import atomic_write
 from fetch.dataset import schema
 from fetch.dataset.background import BackgroundWriter
 from fetch.dataset.demo_file import hdf5_bytes, read_demo_group, write_demo_file
-from fetch.dataset.durable import atomic_write
 from fetch.dataset.episode import Demo
 from fetch.errors import DatasetError
 

@@ -25,7 +25,7 @@ def path(run: str | os.PathLike[str]) -> pathlib.Path:
 def write(run: pathlib.Path, content: bytes) -> None:
     """Replace the checkpoint all at once: a temporary file, flushed to disk, renamed over the old one.
     A kill at any moment leaves the previous checkpoint or the new one, never a torn file."""
-    from fetch.dataset.writer import atomic_write
+    from fetch._durable import atomic_write
 
     try:
         atomic_write(path(run), content)

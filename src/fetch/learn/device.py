@@ -1,4 +1,7 @@
-"""A trained policy as a collection device (`gym-fetch collect --device policy --policy RUN/`)."""
+"""A trained policy as a collection device (`gym-fetch collect --device policy --policy RUN/`): a person
+watches it, or records what it does. Declared here and registered with the collector's devices
+(`fetch.teleop.registry.register`) when this module is imported, which `gym-fetch` does; the
+policy and torch are loaded only when the device is built."""
 
 from __future__ import annotations
 
@@ -9,7 +12,8 @@ from typing import Any
 import numpy as np
 
 from fetch.errors import FetchError
-from fetch.teleop.devices import Command
+from fetch.teleop.devices import Command, Device, DeviceContext, DeviceKind
+from fetch.teleop.registry import register
 
 
 class PolicyDevice:
@@ -35,3 +39,20 @@ class PolicyDevice:
 
     def close(self) -> None:
         pass
+
+
+def add_policy_arguments(p: Any) -> None:
+    p.add_argument("--policy", default=None, metavar="RUN",
+                   help="with --device policy: the run directory `gym-fetch train` wrote")
+
+
+def build_policy(context: DeviceContext) -> Device:
+    run = getattr(context.args, "policy", None)
+    if not run:
+        raise FetchError("--device policy needs --policy RUN (a directory written by `gym-fetch train`)")
+    return PolicyDevice(context.env, run)
+
+
+KIND = register(DeviceKind(
+    name="policy", human=False, legend=(), add_arguments=add_policy_arguments, build=build_policy,
+    summary="a policy trained by `gym-fetch train` (--policy RUN)"))

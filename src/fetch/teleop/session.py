@@ -18,10 +18,10 @@ from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.formats import check_format, open_writer, recorded_layout
 from fetch.errors import FetchError, UnknownNameError
 from fetch.rendering import check_camera, check_camera_list, check_image_size
+from fetch.stopping import Stopped, acting_on_stop, polled, raise_if_stopped, signals_held
 from fetch.tasks import MAX_STEPS
 from fetch.teleop.devices import Command, Device
 from fetch.teleop.registry import device_kind
-from fetch.teleop.stopping import Stopped, acting_on_stop, polled, raise_if_stopped, signals_held
 
 RENDER_CHOICES = ("auto", "human", "rgb_array", "none")
 

@@ -1,4 +1,5 @@
-"""How a collection session stops on a signal: SIGTERM as Ctrl-C, and the saves finished whatever comes next."""
+"""How a tool stops on a signal: SIGTERM as Ctrl-C, and the saves finished whatever comes next (the bottom
+layer: the collector, the editing tools, the exports and generate all stop through it)."""
 
 from __future__ import annotations
 
