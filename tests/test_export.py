@@ -243,21 +243,45 @@ def test_npz_export_writes_what_the_collector_writes(dataset: pathlib.Path, tmp_
             assert meta["demo"] == f"demo_{i}" and meta["observation_space"] == theirs_meta["observation_space"]
 
 
-def test_npz_export_refuses_a_directory_with_npz_files_unless_forced(dataset: pathlib.Path,
-                                                                    tmp_path: pathlib.Path,
-                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+def test_npz_export_refuses_a_directory_that_is_not_empty_unless_forced_and_then_replaces_it(
+        dataset: pathlib.Path, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "npz"
     done = export_npz(dataset, out, demos="all")
     assert len(done.demos) == 4 and len(list(out.glob("*.npz"))) == 4
     with np.load(sorted(out.glob("*_ep0003_*.npz"))[0]) as z:
         assert z["truncated"][-1] and not json.loads(str(z["metadata_json"]))["successful"]
     assert main(["export", str(dataset), "--to", "npz", "--out", str(out)]) == 2
-    assert "already holds 4 .npz file(s)" in capsys.readouterr().err
+    assert "already exists and is not empty" in capsys.readouterr().err
     assert main(["export", str(dataset), "--to", "npz", "--out", str(out), "--demos", "failed", "--force"]) == 0
     with open_dataset(dataset) as ds:
         ended = int(ds.attrs("demo_3")["ended"])
-    with np.load(out / f"{ENV}_ep0000_{ended}.npz") as z:  # numbered from 0 again; a same name is replaced
+    (only,) = out.glob("*.npz")  # the directory replaced whole: the failed demo alone, numbered from 0
+    assert only.name == f"{ENV}_ep0000_{ended}.npz"
+    with np.load(only) as z:
         assert json.loads(str(z["metadata_json"]))["demo"] == "demo_3"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["npz"]  # nothing left beside it
+
+
+def test_a_killed_npz_export_leaves_the_old_directory_or_the_new_one(dataset: pathlib.Path,
+                                                                     tmp_path: pathlib.Path) -> None:
+    """SIGKILL part-way through: before, 21-58 of 400 files were there; now the old export, whole."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "npz"
+    export_npz(dataset, out, demos="successful")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    killer = ("import os, signal, sys\nfrom fetch import cli\nfrom fetch.dataset import npz\n"
+              "inner, calls = npz.seed_file, []\n"
+              "def second(*a, **k):\n    calls.append(1)\n"
+              "    if len(calls) == 2: os.kill(os.getpid(), signal.SIGKILL)\n    return inner(*a, **k)\n"
+              "npz.seed_file = second\nsys.exit(cli.main(sys.argv[1:]))\n")
+    run = subprocess.run([sys.executable, "-c", killer, "export", str(dataset), "--to", "npz", "--out", str(out),
+                          "--demos", "all", "--force"], capture_output=True, text=True, timeout=300)
+    assert run.returncode == -9, run.stderr
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert main(["export", str(dataset), "--to", "npz", "--out", str(out), "--demos", "all", "--force"]) == 0
+    assert len(list(out.glob("*.npz"))) == 4 and sorted(p.name for p in tmp_path.iterdir()) == ["npz"]
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,6 @@ from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
 from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset, require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError, install_hint
-from fetch.stopping import raise_if_stopped
 
 FORMATS = ("minari", "npz", "lerobot")
 SELECTIONS = ("successful", "all")
@@ -253,7 +252,10 @@ def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
                force: bool = False) -> Exported:
     """Write the selected demos as the seed collector's files in `out_dir`: `<env>_ep<NNNN>_<t>.npz`,
     numbered from 0 in the file's order, `t` the demo's end [s, Unix time], with the seed's keys.
-    A directory that already holds `.npz` files is an error unless `force` (same names are replaced)."""
+    The files are written into a directory beside `out_dir` that replaces it whole once every file
+    is there (`dirs.replacing_dir`): a kill at any instant leaves the old directory or the new one,
+    never some of the files (before: 21-58 of 400). A directory that is not empty is an error unless
+    `force`, which replaces it."""
     import gymnasium as gym
 
     import fetch  # noqa: F401  (registers the ids)
@@ -265,34 +267,24 @@ def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
     with open_dataset(ds_path) as ds:
         require_valid(ds)  # nothing a tool flags as invalid is passed on
         chosen = select_demos(ds, demos)
-        if out.is_dir() and not force:
-            present = sorted(out.glob("*.npz"))
-            if present:
-                raise DatasetError(f"{out} already holds {len(present)} .npz file(s) (e.g. {present[0].name}); "
-                                   "export into an empty directory, or pass --force to write over files of the "
-                                   "same name")
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as e:
-            raise DatasetError(f"cannot create the output directory {out}: {e}") from e
         env = gym.make(ds.env_id, **ds.env_kwargs)
         base = {"env_id": ds.env_id, "max_steps": ds.settings.get("max_steps"),
                 "action_space": str(env.action_space), "observation_space": str(env.observation_space),
                 "exported_from": str(ds.path)}
         env.close()
         steps = 0
-        for index, name in enumerate(progress(chosen, len(chosen), "export")):
-            demo = Demo(arrays=ds.arrays(name), attrs=chosen[name])
-            ended = float(demo.attrs["ended"])
-            metadata = {**npz.seed_metadata(base, demo, index, ended), "demo": name}
-            path = out / f"{npz.file_stem(ds.env_id, index, ended)}.npz"
-            content = npz.seed_file(demo, metadata)
-            raise_if_stopped()  # a stop whose exception Python swallowed stops between files too
-            try:
-                atomic_write(path, content)
-            except OSError as e:
-                raise DatasetError(f"cannot write {path}: {e}") from e
-            steps += demo.num_samples
+        with replacing_dir(out, force=force) as building:
+            for index, name in enumerate(progress(chosen, len(chosen), "export")):
+                demo = Demo(arrays=ds.arrays(name), attrs=chosen[name])
+                ended = float(demo.attrs["ended"])
+                metadata = {**npz.seed_metadata(base, demo, index, ended), "demo": name}
+                path = building / f"{npz.file_stem(ds.env_id, index, ended)}.npz"
+                content = npz.seed_file(demo, metadata)
+                try:
+                    atomic_write(path, content)
+                except OSError as e:
+                    raise DatasetError(f"cannot write {out / path.name}: {e}") from e
+                steps += demo.num_samples
     return Exported(path=out, demos=tuple(chosen), steps=steps)
 
 
@@ -345,8 +337,8 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--demos", default="successful", metavar="WHICH",
                    help="successful (default), all, or a mask of the file (train, valid, failed)")
     p.add_argument("--force", action="store_true",
-                   help="replace a Minari dataset of the same id; write npz files into a directory that has some; "
-                        "replace the LeRobot dataset at --out")
+                   help="replace a Minari dataset of the same id, or the directory at --out (npz, LeRobot); each is "
+                        "built beside and swapped in whole")
     g = p.add_argument_group("minari metadata")
     g.add_argument("--author", default=None, help="the dataset's author (default: none)")
     g.add_argument("--author-email", default=None, help="the author's e-mail address (default: none)")
