@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from fetch.cli import main
-from fetch.dataset import open_dataset, validate
+from fetch.dataset import open_dataset, schema, validate
 from fetch.dataset.background import BackgroundWriter
 from fetch.dataset.frames import StateRenderer
 from fetch.dataset.video import read_video
@@ -446,3 +446,40 @@ def test_a_stop_whose_exception_python_swallowed_still_stops_the_tool_and_change
     assert proc.returncode == 130, proc.stderr
     assert {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()} == before
     assert not list(out.iterdir())
+
+
+KILLED_BETWEEN_RENAMES = """
+import os, signal, sys
+from fetch import cli
+from fetch.dataset import durable
+
+replaced = []
+real = os.replace
+def replace(src, dst):
+    if str(dst).endswith(".hdf5"):
+        replaced.append(dst)
+        if len(replaced) == 2:  # the second demo file renamed: SIGKILL before the rest and the index
+            os.kill(os.getpid(), signal.SIGKILL)
+    return real(src, dst)
+durable.os.replace = replace
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("then", ["info", "collect"])
+def test_render_obs_killed_between_its_renames_is_finished_by_the_next_tool(plain: pathlib.Path, then: str) -> None:
+    """The copies are renamed over the originals one by one; a SIGKILL between two left 2 of 3 demos with
+    images and a layout without the camera, which `info` called valid. The renames are noted first, and
+    the next tool that opens the dataset (a reader, a resuming collector) makes the rest."""
+    proc = subprocess.run([sys.executable, "-c", KILLED_BETWEEN_RENAMES, "render-obs", str(plain), "--camera",
+                           "front", "--size", "16", "--workers", "1"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == -9, proc.stderr
+    assert (plain / ".demos.hdf5.rewrites").exists()
+    if then == "info":
+        assert main(["info", str(plain)]) == 0
+    else:
+        collect(plain, "--cameras", "front", "--image-size", "16", episodes=1, seed=50)  # as the dataset now is
+    assert not list(plain.glob(".*")) and not list((plain / "episodes").glob(".*"))
+    with open_dataset(plain) as ds:
+        assert validate(ds) == [] and "front" in ds.layout.cameras
+        assert all(f"obs/{schema.image_key('front')}" in ds.demo(n) for n in ds.demo_names[:3])

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import json
 import os
 import pathlib
 import shutil
@@ -13,7 +14,7 @@ from typing import Any
 
 import h5py
 
-from fetch._durable import fsync_path
+from fetch._durable import atomic_write, fsync_path
 from fetch.dataset import schema
 from fetch.errors import DatasetError
 
@@ -55,9 +56,36 @@ def editing(index: pathlib.Path) -> Iterator[None]:
     else:
         handle = _lock_file(index.with_name(f".{index.name}.lock"), index)
     try:
+        finish_rewrites(index)
         yield
     finally:
         unlock_directory(handle)
+
+
+def journal_of(path: pathlib.Path) -> pathlib.Path:
+    """Where `Rewrites` notes the renames it is making, beside the file it replaces last (an index)."""
+    return path.with_name(f".{path.name}.rewrites")
+
+
+def finish_rewrites(index: pathlib.Path) -> bool:
+    """Make the renames that a `Rewrites` stopped part-way through (a SIGKILL between them) noted
+    beside `index`; the caller holds the dataset (`editing`). True if there were any."""
+    journal = journal_of(index)
+    try:
+        renames = json.loads(journal.read_text())
+    except FileNotFoundError:
+        return False
+    except (OSError, ValueError) as e:
+        raise DatasetError(f"{journal} (the renames of an interrupted edit) cannot be read: {e}; "
+                           "remove it if the dataset reads as it should") from e
+    for tmp, path in renames:
+        if (index.parent / tmp).exists():  # renamed already otherwise
+            os.replace(index.parent / tmp, index.parent / path)
+    for directory in {(index.parent / path).parent for _, path in renames}:
+        fsync_path(directory)
+    journal.unlink()
+    fsync_path(index.parent)
+    return True
 
 
 def _lock_file(lock: pathlib.Path, dataset: pathlib.Path) -> Any:
@@ -94,13 +122,22 @@ class Rewrites:
 
     def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
         try:
-            if kind is None:
+            if kind is None and self._copies:
                 for tmp in self._copies.values():
                     fsync_path(tmp)
+                # Noted first, so that a kill between the renames is finished by the next tool to hold
+                # the dataset (`finish_rewrites`), not left half old, half new (2 of 5 demos with images
+                # and a layout without the camera, which `info` called valid).
+                last = list(self._copies)[-1]
+                journal = journal_of(last)
+                renames = [[os.path.relpath(tmp, last.parent), os.path.relpath(path, last.parent)]
+                           for path, tmp in self._copies.items()]
+                atomic_write(journal, json.dumps(renames).encode())
                 for path, tmp in self._copies.items():
                     os.replace(tmp, path)
                 for directory in {path.parent for path in self._copies}:
                     fsync_path(directory)
+                journal.unlink()
         finally:
             for tmp in self._copies.values():
                 with contextlib.suppress(OSError):

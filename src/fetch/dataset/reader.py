@@ -14,6 +14,7 @@ import numpy as np
 
 from fetch.dataset import schema
 from fetch.dataset.demo_file import read_demo_group
+from fetch.dataset.durable import editing, journal_of
 from fetch.errors import DatasetError
 
 FILE_HELP = "a dataset file (demos.hdf5) or the directory that holds it"
@@ -210,6 +211,9 @@ def open_dataset(path: str | os.PathLike[str], mode: str = "r") -> Dataset:
         raise DatasetError(f"{p}: no such file")
     if not p.is_file():  # a FIFO or a device would block the open, or read forever
         raise DatasetError(f"{p} is not a regular file; a dataset is an HDF5 file (or the directory that holds one)")
+    if journal_of(p).exists():  # an edit stopped between its renames: finish it, unless another tool holds it
+        with contextlib.suppress(DatasetError, OSError), editing(p):
+            pass
     try:
         file = h5py.File(p, mode)
     except OSError as e:
@@ -412,6 +416,10 @@ def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dic
 def validate(ds: Dataset) -> list[str]:
     """Every inconsistency found in the file (empty when it is sound); each names the demo and key."""
     problems = header_problems(ds)
+    if journal_of(ds.path).exists():
+        problems.append(f"an edit (render-obs, split) was stopped while it replaced the files, some old and some "
+                        f"new ({journal_of(ds.path).name} lists them): open it once with write access and no "
+                        "collector running (e.g. `gym-fetch info`), which finishes the edit")
     try:
         problems += [f"data/{name}: not a demo name (demo_<integer>)" for name in ds.file["data"].keys()
                      if not _is_demo_name(name)]

@@ -28,6 +28,7 @@ from fetch._durable import atomic_write
 from fetch.dataset import schema
 from fetch.dataset.background import BackgroundWriter
 from fetch.dataset.demo_file import hdf5_bytes, read_demo_group, write_demo_file
+from fetch.dataset.durable import finish_rewrites
 from fetch.dataset.episode import Demo
 from fetch.errors import DatasetError
 
@@ -134,6 +135,7 @@ class DatasetWriter(BackgroundWriter):
     def _resume(self) -> None:
         from fetch.dataset.reader import open_dataset
 
+        finish_rewrites(self.index_path)  # an edit's renames that a kill stopped part-way: its copies are .tmp
         for stale in self.out_dir.glob(".*.tmp"):
             stale.unlink()
         for stale in self.episodes_dir.glob(".*.tmp"):
