@@ -10,7 +10,8 @@ expert demos) or into a fresh output, is stopped after a random 0.5-6 s, and mus
   one-line error (1 or 2: a closed or full stdout), and no traceback;
 - leave no worker process running 10 s later;
 - leave its input exactly as it was (read-only tools) or valid (tools that edit it);
-- leave its output valid, or absent, and no temporary file in $TMPDIR.
+- leave its output valid, or absent, and no temporary file in $TMPDIR that its next run does not
+  remove (the rounds of a tool share one $TMPDIR).
 
 Prints one table of tools by stop, each cell "passed/rounds" with the failures listed below it.
 
@@ -108,9 +109,11 @@ def one_round(tool: str, stop: str, rng: random.Random, fixture: pathlib.Path, r
     """Run `tool`, stop it with `stop`; None if every check passed, else what failed."""
     shutil.rmtree(root, ignore_errors=True)
     root.mkdir(parents=True)
-    data, out, tmp = root / "data", root / "out", root / "tmp"
+    data, out = root / "data", root / "out"
+    tmp = root.parent / "tmp" / tool  # shared by the tool's rounds: what one leaves, the next must clean
+    tmp.mkdir(parents=True, exist_ok=True)
+    left_before = {p.name for p in tmp.iterdir()}
     shutil.copytree(fixture, data)
-    tmp.mkdir()
     before = digest(data)
     env = dict(os.environ, TMPDIR=str(tmp), MINARI_DATASETS_PATH=str(root / "minari"),
                HF_LEROBOT_HOME=str(root / "lerobot"))
@@ -187,9 +190,9 @@ def one_round(tool: str, stop: str, rng: random.Random, fixture: pathlib.Path, r
         why = valid(produced, python)
         if why:
             problems.append(f"output invalid: {why}")
-    left = [p.name for p in tmp.iterdir()]
-    if left:
-        problems.append(f"left in $TMPDIR: {left[:3]}")
+    stale = sorted(left_before & {p.name for p in tmp.iterdir()})
+    if stale:
+        problems.append(f"an earlier round's temporary files still in $TMPDIR: {stale[:3]}")
     return "; ".join(problems) or None
 
 

@@ -119,3 +119,23 @@ def test_generate_stops_on_a_group_ctrl_c_with_no_worker_left(pick_demos: pathli
     if (out / "demos.hdf5").exists():
         with open_dataset(out) as ds:
             assert validate(ds) == []
+
+
+def test_a_ctrl_c_while_the_command_loads_exits_130_without_a_traceback(tmp_path: pathlib.Path) -> None:
+    """In the first second `gym-fetch` imports MuJoCo, Gymnasium and NumPy; a Ctrl-C there printed a
+    KeyboardInterrupt traceback, or "ImportError: initialization failed" (22 of 30 tries). The command's
+    entry point (`_gym_fetch_entry`) exits with 130 then; nothing has been written."""
+    command = pathlib.Path(sys.executable).with_name("gym-fetch")
+    if not command.exists():
+        pytest.skip(f"the gym-fetch command is not installed beside {sys.executable}")
+    codes = []
+    for delay in (0.05, 0.1, 0.2, 0.3, 0.45, 0.6):
+        proc = subprocess.Popen([str(command), "info", str(tmp_path / "none")], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, start_new_session=True)
+        time.sleep(delay)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+        assert "Traceback" not in stderr and "Error" not in stderr.replace("error: ", ""), stderr[-800:]
+        codes.append(proc.returncode)
+    assert set(codes) <= {130, 2, -signal.SIGINT}, codes  # 2: it had loaded and said the dataset is missing
+    assert codes.count(130) >= 3, codes
