@@ -54,7 +54,7 @@ def tool_commands(data: pathlib.Path, out: pathlib.Path, run_dir: pathlib.Path) 
                             "--out", str(out)],
         "generate": ["generate", "--source", str(data), "--out", str(out), "--demos", "3000", "--workers", "2"],
         "render-obs": ["render-obs", str(data), "--camera", "front", "--size", "48", "--workers", "2"],
-        "merge": ["merge", str(data), str(data), "--out", str(out) + ".hdf5"],
+        "merge": ["merge", str(data), str(data.parent / "fixture"), "--out", str(out) + ".hdf5"],
         "split": ["split", str(data), "--valid", "0.3"],
         "export-npz": ["export", str(data), "--to", "npz", "--out", str(out)],
         "export-minari": ["export", str(data), "--to", "minari", "--dataset-id", f"soak/{out.name}-v0"],
@@ -114,11 +114,12 @@ def one_round(tool: str, stop: str, rng: random.Random, fixture: pathlib.Path, r
     tmp.mkdir(parents=True, exist_ok=True)
     left_before = {p.name for p in tmp.iterdir()}
     shutil.copytree(fixture, data)
+    shutil.copytree(fixture, root / "fixture")  # merge's second input
     before = digest(data)
     env = dict(os.environ, TMPDIR=str(tmp), MINARI_DATASETS_PATH=str(root / "minari"),
                HF_LEROBOT_HOME=str(root / "lerobot"))
-    argv = [train_python if tool in TORCH else python, "-u", "-m", "fetch.cli",
-            *tool_commands(data, out, run_dir)[tool]]
+    command = pathlib.Path(train_python if tool in TORCH else python).with_name("gym-fetch")  # as people run it
+    argv = [str(command), *tool_commands(data, out, run_dir)[tool]]
     stdout: int | object = subprocess.PIPE
     full = None
     if stop == "full-stdout":
@@ -190,7 +191,8 @@ def one_round(tool: str, stop: str, rng: random.Random, fixture: pathlib.Path, r
         why = valid(produced, python)
         if why:
             problems.append(f"output invalid: {why}")
-    stale = sorted(left_before & {p.name for p in tmp.iterdir()})
+    stale = sorted(n for n in left_before & {p.name for p in tmp.iterdir()}
+                   if not n.startswith("torchinductor"))  # torch's compile cache, kept on purpose
     if stale:
         problems.append(f"an earlier round's temporary files still in $TMPDIR: {stale[:3]}")
     return "; ".join(problems) or None

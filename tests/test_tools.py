@@ -483,3 +483,22 @@ def test_render_obs_killed_between_its_renames_is_finished_by_the_next_tool(plai
     with open_dataset(plain) as ds:
         assert validate(ds) == [] and "front" in ds.layout.cameras
         assert all(f"obs/{schema.image_key('front')}" in ds.demo(n) for n in ds.demo_names[:3])
+
+
+@pytest.mark.parametrize("tool", ["info", "split", "export npz"])
+def test_a_full_stdout_is_one_line_and_the_work_is_done(plain: pathlib.Path, tmp_path: pathlib.Path, tool: str) -> None:
+    """`> /dev/full`: the report's print failed with ENOSPC, a traceback; now one line, exit 1, and what
+    the tool did is done (the split written, the export in place)."""
+    args = {"info": ["info", str(plain)], "split": ["split", str(plain), "--valid", "0.5"],
+            "export npz": ["export", str(plain), "--to", "npz", "--out", str(tmp_path / "npz")]}[tool]
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run([sys.executable, "-m", "fetch.cli", *args], stdout=full, stderr=subprocess.PIPE,
+                              text=True, timeout=300)
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.strip() == f"gym-fetch {args[0]}: error: cannot write to stdout (No space left on device)"
+    if tool == "split":
+        with open_dataset(plain) as ds:
+            assert len(ds.masks()["valid"]) >= 1
+    if tool == "export npz":
+        assert len(list((tmp_path / "npz").glob("*.npz"))) == 3

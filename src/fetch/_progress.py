@@ -8,7 +8,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterable, Iterator
-from typing import TypeVar
+from typing import Any, TypeVar
 
 T = TypeVar("T")
 
@@ -64,3 +64,44 @@ def stdout_gone() -> None:
         null = os.open(os.devnull, os.O_WRONLY)
         os.dup2(null, sys.stdout.fileno())
         os.close(null)
+
+
+class StdoutError(OSError):
+    """Stdout could not be written (`> /dev/full`, a failing terminal): the command's report, not its work."""
+
+
+class _GuardedStdout:
+    """Stdout, with its write errors told apart from every other OSError (`StdoutError`)."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return int(self._stream.write(text))
+        except BrokenPipeError:
+            raise
+        except OSError as e:
+            raise StdoutError(e.errno, e.strerror) from e
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as e:
+            raise StdoutError(e.errno, e.strerror) from e
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+@contextlib.contextmanager
+def guarded_stdout() -> Iterator[None]:
+    """While inside, a failed write to stdout raises `StdoutError` (a BrokenPipeError stays one)."""
+    before = sys.stdout
+    sys.stdout = _GuardedStdout(before)  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        sys.stdout = before

@@ -12,7 +12,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from fetch._progress import stdout_gone
+from fetch._progress import StdoutError, guarded_stdout, stdout_gone
 
 Command = Callable[[argparse.Namespace], int]
 
@@ -371,7 +371,8 @@ def _run(args: argparse.Namespace, prog: str | None = None) -> int:
     from fetch.errors import FetchError
 
     try:
-        return int(args.run(args))
+        with guarded_stdout():
+            return int(args.run(args))
     except FetchError as e:
         print(f"{prog or 'gym-fetch ' + args.command}: error: {e}", file=sys.stderr)
         stop = _stop_behind(e)
@@ -386,6 +387,17 @@ def _run(args: argparse.Namespace, prog: str | None = None) -> int:
             return _stopped(stop)
         stdout_gone()
         return 1
+    except OSError as e:  # what no tool turned into a FetchError: one line, not a traceback
+        stop = _stop_behind(e)
+        if stop is not None:
+            return _stopped(stop)
+        name = prog or "gym-fetch " + args.command
+        if isinstance(e, StdoutError):  # `> /dev/full`: the work is done, its report could not be written
+            stdout_gone()
+            print(f"{name}: error: cannot write to stdout ({e.strerror or e})", file=sys.stderr)
+            return 1
+        print(f"{name}: error: {e}", file=sys.stderr)
+        return 2
 
 
 def _stop_behind(e: BaseException) -> KeyboardInterrupt | None:
