@@ -1,7 +1,7 @@
 """The `gym-fetch` command's entry point, outside the `fetch` package so that it runs before the package
 loads (MuJoCo, Gymnasium, NumPy: about a second). A Ctrl-C in that second ended the command with a
 KeyboardInterrupt traceback, or "ImportError: initialization failed" when it landed inside a compiled
-module's import (22 of 30 tries); nothing has been written by then, so it now exits at once with 130,
+module's import; nothing has been written by then, so it now exits at once with 130,
 as a stop does later. `fetch.cli.main` installs the real handlers (finish the saves, then stop). Once
 it has returned, the work is done and the interpreter winds down (joins worker processes, runs exit
 handlers): a stop signal then ends the process at once with 128 + its number, where before it could

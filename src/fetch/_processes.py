@@ -41,8 +41,7 @@ def start_worker(parent: int) -> None:
     """What a pool's worker does first: end with its parent (`exit_with_parent`), and leave Ctrl-C to
     it. A terminal's Ctrl-C goes to the whole process group; a worker that raised it mid-job sent a
     KeyboardInterrupt back through its job's future, which ended the collector's writer thread, and
-    the collector waited for it forever (4 of 5 group Ctrl-Cs of `collect --cameras`). The parent
-    stops its workers when it stops."""
+    the collector waited for it forever. The parent stops its workers when it stops."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked by workers_deaf_to_ctrl_c
     exit_with_parent(parent)

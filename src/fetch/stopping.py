@@ -56,7 +56,7 @@ def _stop(signum: int, frame: FrameType | None) -> None:
 def _dropped(unraisable: Any) -> None:
     """`sys.unraisablehook` while stopping on signals: a `Stopped` raised in a weakref callback or a
     `__del__` is dropped by Python (printed as "Exception ignored in ..."), and the tool would carry on
-    as if no Ctrl-C had come (a group Ctrl-C in `render-obs`, 1 of 12). The signal is delivered again
+    as if no Ctrl-C had come. The signal is delivered again
     once out of it; anything else goes to the hook before."""
     if isinstance(unraisable.exc_value, Stopped) and not _STATE.handled:
         timer = threading.Timer(REDELIVER, os.kill, (os.getpid(), unraisable.exc_value.signum))

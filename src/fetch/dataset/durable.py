@@ -126,8 +126,8 @@ class Rewrites:
                 for tmp in self._copies.values():
                     fsync_path(tmp)
                 # Noted first, so that a kill between the renames is finished by the next tool to hold
-                # the dataset (`finish_rewrites`), not left half old, half new (2 of 5 demos with images
-                # and a layout without the camera, which `info` called valid).
+                # the dataset (`finish_rewrites`), not left half old, half new (some demos with images
+                # and a layout without the camera).
                 last = list(self._copies)[-1]
                 journal = journal_of(last)
                 renames = [[os.path.relpath(tmp, last.parent), os.path.relpath(path, last.parent)]

@@ -254,7 +254,7 @@ def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
     numbered from 0 in the file's order, `t` the demo's end [s, Unix time], with the seed's keys.
     The files are written into a directory beside `out_dir` that replaces it whole once every file
     is there (`dirs.replacing_dir`): a kill at any instant leaves the old directory or the new one,
-    never some of the files (before: 21-58 of 400). A directory that is not empty is an error unless
+    never some of the files. A directory that is not empty is an error unless
     `force`, which replaces it."""
     import gymnasium as gym
 

@@ -112,7 +112,7 @@ DIR_PREFIX = "fetch-render-"
 
 def _remove_stale_dirs() -> None:
     """Remove the directories that render pools of processes no longer running left in $TMPDIR (a
-    SIGKILLed process runs no cleanup; before, every kill left one)."""
+    SIGKILLed process runs no cleanup)."""
     for stale in pathlib.Path(tempfile.gettempdir()).glob(f"{DIR_PREFIX}*-*"):
         pid = stale.name[len(DIR_PREFIX):].split("-", 1)[0]
         if not pid.isdigit():

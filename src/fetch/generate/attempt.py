@@ -97,8 +97,7 @@ def pass_over(path: np.ndarray, centre: np.ndarray, radius: float, height: float
     side of them by half as much; in place. The steps that end the path over the object (coming down
     to grasp it) are left as they are: only passes that leave it again are lifted. A person who goes
     over a block to push it from behind does it with a centimetre to spare; carried over to another
-    block and perturbed, the same pass dragged the block along (Push `person`: 20 of 200 attempts
-    knocked it off the table)."""
+    block and perturbed, the same pass drags the block along, or off the table (docs/generate.md)."""
     over = np.linalg.norm(path[:, :2] - centre[:2], axis=1) < radius + FINGER_WIDTH
     arriving = int(np.argmin(over[::-1])) if not over.all() else len(over)  # the final run over it
     passing = len(over) - arriving

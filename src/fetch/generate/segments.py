@@ -52,8 +52,8 @@ class Segment:
     anchored on that object (a drawer's handle), not on the goal. Its start is replayed relative to
     the object (the hook stays in the slot) and its end relative to the goal: carried over, the path
     is shifted, ramping up by `settle_by`, by how far the attempt's goal is from where the source's
-    would be (a drawer that the hook pulled 3 cm further open is pushed 3 cm further; anchored on the
-    handle alone, such pushes ended short: 47 % of Drawer-close `person` attempts kept, 94 % now)."""
+    would be: a drawer that the hook pulled 3 cm further open than the source's is pushed 3 cm further
+    (anchored on the handle alone, it ended 3 cm short; docs/generate.md)."""
 
     @property
     def length(self) -> int:
