@@ -159,3 +159,22 @@ def test_a_stop_in_a_weakref_callback_is_not_swallowed_and_keeps_the_old_directo
     assert proc.stdout.strip() == f"stopped {int(signal.SIGINT)}", proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
     assert [p.name for p in target.iterdir()] == ["old"]
+
+
+def test_a_stop_while_the_handlers_are_put_back_is_still_the_exit_status(monkeypatch) -> None:  # noqa: ANN001
+    """A SIGTERM that lands as the command winds down (its signal handlers and environment being put
+    back) ended `view` with a traceback in the soak; it is the exit status instead."""
+    import contextlib
+    import os
+    import time
+
+    from fetch import cli, stopping
+
+    @contextlib.contextmanager
+    def environ(**_: object):  # noqa: ANN202
+        yield
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)  # the handler runs here, in the teardown
+
+    monkeypatch.setattr(stopping, "environ", environ)
+    assert cli.main(["info", "/nonexistent/demos"]) == 128 + signal.SIGTERM  # not a traceback, not 2

@@ -342,12 +342,15 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     from fetch.stopping import stop_on_signals
 
-    with stop_on_signals():  # from the start: a Ctrl-C or SIGTERM while loading ends cleanly too
-        try:
-            parser = _parser()
-        except KeyboardInterrupt as e:
-            return _stopped(e)
-        return _run(parser.parse_args(argv))
+    try:
+        with stop_on_signals():  # from the start: a Ctrl-C or SIGTERM while loading ends cleanly too
+            try:
+                parser = _parser()
+            except KeyboardInterrupt as e:
+                return _stopped(e)
+            return _run(parser.parse_args(argv))
+    except KeyboardInterrupt as e:  # landed while the handlers were put back, the work done
+        return _stopped(e)
 
 
 def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_demo.py") -> int:
@@ -358,8 +361,11 @@ def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_d
     p.set_defaults(run=run_collect, command="collect")
     from fetch.stopping import stop_on_signals
 
-    with stop_on_signals():
-        return _run(p.parse_args(argv), prog)
+    try:
+        with stop_on_signals():
+            return _run(p.parse_args(argv), prog)
+    except KeyboardInterrupt as e:  # landed while the handlers were put back, the work done
+        return _stopped(e)
 
 
 def _stopped(e: KeyboardInterrupt) -> int:
