@@ -155,7 +155,7 @@ def run_video(args: argparse.Namespace) -> int:
     from fetch._progress import progress
     from fetch.dataset import open_dataset
     from fetch.dataset.frames import StateRenderer
-    from fetch.dataset.reader import require_valid
+    from fetch.dataset.validation import require_valid
     from fetch.dataset.video import check_video_path, write_video
     from fetch.errors import FetchError
 
@@ -214,8 +214,8 @@ def _check(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
     from fetch._progress import progress
     from fetch.dataset import open_dataset
     from fetch.dataset.npz import check_npz
-    from fetch.dataset.reader import require_valid
     from fetch.dataset.replay import check_demo, make_replay_env, other_model
+    from fetch.dataset.validation import require_valid
 
     if demos := _npz_demos(args.file, args.demo):
         env = gymnasium.make(str(demos[0].metadata["env_id"])).unwrapped

@@ -22,7 +22,8 @@ from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.dirs import require_apart
 from fetch.dataset.durable import editing, rewritten
-from fetch.dataset.reader import Dataset, open_dataset, require_valid, resolve
+from fetch.dataset.reader import Dataset, open_dataset, resolve
+from fetch.dataset.validation import require_valid
 from fetch.dataset.writer import package_versions
 from fetch.errors import DatasetError, FetchError
 from fetch.stopping import raise_if_stopped

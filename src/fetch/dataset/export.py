@@ -17,7 +17,8 @@ from fetch.dataset import npz, schema
 from fetch.dataset.dirs import recover_replaced, replacing_dir, require_apart
 from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
-from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset, require_valid
+from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset
+from fetch.dataset.validation import require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError, install_hint
 
 FORMATS = ("minari", "npz", "lerobot")

@@ -21,7 +21,8 @@ import numpy as np
 from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.durable import Rewrites, editing
-from fetch.dataset.reader import open_dataset, require_valid, resolve
+from fetch.dataset.reader import open_dataset, resolve
+from fetch.dataset.validation import require_valid
 from fetch.errors import FetchError
 from fetch.rendering import check_image_size
 from fetch.stopping import raise_if_stopped

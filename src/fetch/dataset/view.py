@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset.habits import FLAG_KINDS, dataset_flags
-from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, open_dataset, validate
+from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, open_dataset
+from fetch.dataset.validation import validate
 from fetch.errors import DatasetError, FetchError
 
 SIGNIFICANT = 5

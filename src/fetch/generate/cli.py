@@ -62,7 +62,8 @@ def run_generate(args: argparse.Namespace) -> int:
 def run_subtasks(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
-    from fetch.dataset.reader import open_dataset, require_valid
+    from fetch.dataset.reader import open_dataset
+    from fetch.dataset.validation import require_valid
     from fetch.generate.segments import annotate
 
     with open_dataset(args.file) as ds:

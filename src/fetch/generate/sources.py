@@ -12,7 +12,8 @@ import gymnasium as gym
 import numpy as np
 
 from fetch.dataset.habits import HORIZON_MARGIN, first_success, observation_changes, pose_columns
-from fetch.dataset.reader import open_dataset, require_valid
+from fetch.dataset.reader import open_dataset
+from fetch.dataset.validation import require_valid
 from fetch.errors import FetchError
 from fetch.generate.segments import Segment, annotate, segments_of, to_frame
 from fetch.tasks import registered_horizon

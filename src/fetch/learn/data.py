@@ -120,7 +120,7 @@ def load_demos(path: str | os.PathLike[str]) -> Demos:
     """The successful demos of a dataset (file or collector directory): `mask/train` to learn from and
     `mask/valid` to validate on."""
     from fetch.dataset import open_dataset
-    from fetch.dataset.reader import require_valid
+    from fetch.dataset.validation import require_valid
 
     with open_dataset(path) as ds:
         require_valid(ds)

@@ -1,0 +1,207 @@
+"""Validating a dataset: every inconsistency a tool must not pass on (`validate`, what `gym-fetch info`
+lists), and the check every tool makes before it uses a file (`require_valid`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import h5py
+import numpy as np
+
+from fetch.dataset import schema
+from fetch.dataset.durable import journal_of
+from fetch.dataset.reader import READ_ERRORS, Dataset, one_line, plain_value
+from fetch.errors import DatasetError
+
+
+def header_problems(ds: Dataset) -> list[str]:
+    """What is wrong with the dataset's description of its env and model: an env id that is not
+    registered, `env_kwargs` the env refuses, a state size other than the env's, a `model_xml` that
+    is not MJCF. Each tool checks these before it uses the file (`require_valid`)."""
+    import gymnasium as gym
+    import mujoco
+
+    import fetch
+
+    problems = []
+    if ds.env_id not in fetch.ENV_IDS:
+        problems.append(f"data.attrs['env_args'] names the env {ds.env_id!r}, which is not one of gym-fetch-v2's: "
+                        f"{', '.join(fetch.ENV_IDS)}")
+    else:
+        try:
+            env: Any = gym.make(ds.env_id, **ds.env_kwargs)
+        except Exception as e:  # noqa: BLE001 (the env's own check of its arguments, whatever it raises)
+            problems.append(f"data.attrs['env_args'] has env_kwargs {ds.env_kwargs!r}, which {ds.env_id} refuses: "
+                            f"{one_line(e)}")
+        else:
+            state_size = int(np.asarray(env.unwrapped.get_state()).size)
+            env.close()
+            if state_size != ds.layout.state_size:
+                problems.append(f"data.attrs['layout'] has state_size {ds.layout.state_size}, but {ds.env_id} "
+                                f"states have {state_size} values")
+    for key, kind in schema.DATA_ATTR_KINDS.items():
+        if key in ds.data_attrs or key == "total":
+            problem = schema.kind_problem(ds.data_attrs.get(key), kind)
+            problems += [] if problem is None else [f"data.attrs['{key}'] {problem}"]
+    digest = ds.data_attrs.get("model_hash")
+    if not (isinstance(digest, str) and len(digest) == 64 and all(c in "0123456789abcdef" for c in digest)):
+        problems.append(f"data.attrs['model_hash'] is {digest!r}, not a SHA-256 (64 hexadecimal digits)")
+    xml = ds.data_attrs.get("model_xml")
+    try:
+        mujoco.MjSpec.from_string(xml)  # parsed, not compiled: the meshes' directory is the recording machine's
+    except Exception as e:  # noqa: BLE001 (mujoco raises ValueError or TypeError, by version)
+        problems.append(f"data.attrs['model_xml'] is not the model's MJCF (corrupt or missing: {one_line(e)[:200]})")
+    return problems
+
+
+def _demo_problems(ds: Dataset, name: str, images: bool = True) -> tuple[list[str], int | None]:
+    """What is wrong with one demo (each problem starts with its name), and its steps if they are known."""
+    try:
+        group = ds.demo(name)
+    except DatasetError as e:
+        return [str(e)], None
+    try:
+        attrs = {k: plain_value(v) for k, v in group.attrs.items()}
+        attr_problems = schema.check_demo_attrs(attrs)
+        if attr_problems:
+            return [f"{name}: {p}" for p in attr_problems], None
+        t = int(attrs["num_samples"])
+        arrays: dict[str, h5py.Dataset] = {}
+
+        def visit(path: str, node: Any, into: dict[str, Any] = arrays) -> None:
+            if isinstance(node, h5py.Dataset):
+                into[path] = node
+
+        group.visititems(visit)
+        return _content_problems(ds, name, attrs, arrays, t, images), t
+    except READ_ERRORS as e:
+        try:
+            file, _ = ds.demo_file(name)
+        except READ_ERRORS:
+            file = ds.path
+        where = file.relative_to(ds.path.parent) if file.is_relative_to(ds.path.parent) else file
+        return [f"{name} cannot be read (its file {where} is corrupt: {one_line(e)})"], None
+
+
+def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dict[str, h5py.Dataset], t: int,
+                      images: bool) -> list[str]:
+    layout = ds.layout
+    shape_problems = schema.check_arrays(arrays, layout, t)
+    missing_images = {f"missing {p}/{schema.image_key(c)}" for c in layout.cameras for p in ("obs", "next_obs")}
+    if not images:
+        shape_problems = [p for p in shape_problems if p not in missing_images]
+    elif shape_problems and set(shape_problems) <= missing_images:
+        return [f"{name}: its images are not rendered yet (the collector stopped first): run "
+                "`gym-fetch collect` on this directory again, or `gym-fetch render-obs --overwrite`"]
+    if shape_problems:
+        return [f"{name}: {p}" for p in shape_problems]
+    problems = []
+    actions = arrays["actions"][()]
+    if not np.all(np.isfinite(actions)):
+        problems.append(f"{name}: actions hold NaN or infinite values")
+    elif t and np.abs(actions).max() > 1.0:
+        problems.append(f"{name}: actions outside [-1, 1] (robomimic rejects them)")
+    for key, _ in layout.obs_sizes:
+        obs, nxt = arrays[f"obs/{key}"][()], arrays[f"next_obs/{key}"][()]
+        if not (np.all(np.isfinite(obs)) and np.all(np.isfinite(nxt))):
+            problems.append(f"{name}: obs/{key} or next_obs/{key} hold NaN or infinite values")
+        elif t > 1 and not np.array_equal(obs[1:], nxt[:-1]):
+            problems.append(f"{name}: next_obs/{key}[t] differs from obs/{key}[t+1]")
+    if "expert_actions" in arrays:  # what training learns, where present
+        meant = arrays["expert_actions"][()]
+        if meant.shape != actions.shape or not np.all(np.isfinite(meant)) or (t and np.abs(meant).max() > 1.0):
+            problems.append(f"{name}: expert_actions must be {actions.shape}, finite and within [-1, 1]")
+    if not np.all(np.isfinite(arrays["rewards"][()])):
+        problems.append(f"{name}: rewards hold NaN or infinite values")
+    if not np.isin(arrays["is_success"][()], (0, 1)).all():
+        problems.append(f"{name}: is_success holds values other than 0 and 1")
+    if t and np.asarray(arrays["terminated"][()])[:-1].any():
+        problems.append(f"{name}: terminated before its last step (an episode ends where it terminates)")
+    if not np.all(np.isfinite(arrays["states"][()])):
+        problems.append(f"{name}: states hold NaN or infinite values")
+    dones = arrays["dones"][()]
+    if t and (dones[-1] != 1 or dones[:-1].any()):
+        problems.append(f"{name}: dones must be 1 at the last step only")
+    if bool(attrs["success"]) and t and not arrays["is_success"][()].any():
+        problems.append(f"{name}: marked successful but is_success is never 1")
+    if str(attrs["env_id"]) != ds.env_id:
+        problems.append(f"{name}: env_id {attrs['env_id']!r} differs from the dataset's {ds.env_id!r}")
+    return problems
+
+
+def validate(ds: Dataset) -> list[str]:
+    """Every inconsistency found in the file (empty when it is sound); each names the demo and key."""
+    problems = header_problems(ds)
+    if journal_of(ds.path).exists():
+        problems.append(f"an edit (render-obs, split) was stopped while it replaced the files, some old and some "
+                        f"new ({journal_of(ds.path).name} lists them): open it once with write access and no "
+                        "collector running (e.g. `gym-fetch info`), which finishes the edit")
+    try:
+        problems += [f"data/{name}: not a demo name (demo_<integer>)" for name in ds.file["data"].keys()
+                     if not _is_demo_name(name)]
+    except READ_ERRORS as e:
+        problems.append(f"the list of demos cannot be read (the file is corrupt: {one_line(e)})")
+    total = 0
+    unreadable = set()
+    for name in ds.demo_names:
+        found, t = _demo_problems(ds, name)
+        problems += found
+        if t is None:
+            unreadable.add(name)
+        else:
+            total += t
+    recorded = ds.data_attrs.get("total")
+    if not unreadable and isinstance(recorded, int) and recorded != total:
+        problems.append(f"data.attrs['total'] is {ds.data_attrs.get('total')}, the demos hold {total} steps")
+    try:
+        masks = ds.masks()
+    except DatasetError as e:
+        return [*problems, str(e)]
+    names = set(ds.demo_names)
+    for key, listed in masks.items():
+        problems += [f"mask/{key} lists {n}, which is not in data" for n in listed if n not in names]
+    # Every demo is in exactly one of the three splits (other filter keys, as robomimic allows, may overlap).
+    split_of: dict[str, str] = {}
+    for key in schema.SPLITS:
+        for n in masks.get(key, []):
+            if n in split_of:
+                problems.append(f"{n} is in both mask/{split_of[n]} and mask/{key}")
+            split_of.setdefault(n, key)
+    problems += [f"{n} is in no mask (train, valid or failed)" for n in ds.demo_names if n not in split_of]
+    for key in schema.SPLITS:
+        for n in masks.get(key, []):
+            if n in names and n not in unreadable:
+                success = bool(ds.demo(n).attrs["success"])
+                if success != (key != "failed"):
+                    problems.append(f"{n} is in mask/{key} but its success is {success}")
+    return problems
+
+
+def _is_demo_name(name: str) -> bool:
+    try:
+        schema.demo_index(name)
+    except ValueError:
+        return False
+    return True
+
+
+def require_valid(ds: Dataset, names: list[str] | None = None, *, images: bool = True) -> None:
+    """What every tool does before it uses a dataset: DatasetError, one line naming the file and its
+    first problem, unless the file is sound. `names`: only these demos (and the file's header and
+    masks) must be; None: the whole file, as `gym-fetch info` validates it. `images=False`: demos
+    whose camera images are not rendered yet pass (replay and render-obs do not read them)."""
+    if names is None:
+        problems = validate(ds)
+    else:
+        problems = header_problems(ds)
+        try:
+            ds.masks()
+        except DatasetError as e:
+            problems.append(str(e))
+        for name in names:
+            problems += _demo_problems(ds, name, images)[0]
+    if problems:
+        first = one_line(problems[0])
+        first = first if first.startswith(str(ds.path)) else f"{ds.path}: {first}"
+        more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
+        raise DatasetError(f"{first}{more}; `gym-fetch info {ds.path}` lists what is wrong")
