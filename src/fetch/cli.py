@@ -4,13 +4,10 @@ from __future__ import annotations
 
 import argparse
 import collections
-import contextlib
-import math
 import pathlib
 import signal
 import sys
 from collections.abc import Callable, Sequence
-from typing import Any
 
 from fetch._progress import StdoutError, guarded_stdout, stdout_gone
 
@@ -143,111 +140,6 @@ def _info_npz(path: str, files: list[pathlib.Path]) -> int:
     return _verdict(found)
 
 
-def run_replay(args: argparse.Namespace) -> int:
-    if args.video:
-        status = run_video(args)
-        if not args.check:
-            return status
-    return run_check(args)
-
-
-def run_video(args: argparse.Namespace) -> int:
-    from fetch._progress import progress
-    from fetch.dataset import open_dataset
-    from fetch.dataset.frames import StateRenderer
-    from fetch.dataset.validation import require_valid
-    from fetch.dataset.video import check_video_path, write_video
-    from fetch.errors import FetchError
-
-    if args.fps is not None and not (math.isfinite(args.fps) and args.fps > 0):
-        raise FetchError(f"--fps must be a positive number of frames per second, got {args.fps}")
-    out = check_video_path(args.video, args.size, args.size)
-    with contextlib.ExitStack() as stack:
-        if demos := _npz_demos(args.file, args.demo):
-            env_id, env_kwargs = str(demos[0].metadata["env_id"]), {}
-            states_of = {d.path.stem: d.arrays["states"] for d in demos}
-        else:
-            ds = stack.enter_context(open_dataset(args.file))
-            names = ds.select(args.demo)
-            require_valid(ds, names, images=False)
-            env_id, env_kwargs = ds.env_id, ds.env_kwargs
-            states_of = {name: ds.demo(name)["states"] for name in names}
-        with StateRenderer(env_id, env_kwargs, args.size, args.size) as renderer:
-            renderer.check_camera(args.camera)
-            fps = args.fps or 1.0 / renderer.env.dt
-            for name, saved in states_of.items():
-                path = out if len(states_of) == 1 else out.with_name(f"{out.stem}_{name}{out.suffix}")
-                states = saved[()]
-                frames = (renderer.frame(state, args.camera) for state in states)
-                count = write_video(path, progress(frames, len(states), f"video {name}", unit="frames"), fps,
-                                    args.size, args.size)
-                print(f"{name}: {count} frames ({len(states) - 1} steps and the final state) at {fps:g} fps, "
-                      f"camera {args.camera} -> {pathlib.Path(path)}")
-    return 0
-
-
-def _npz_demos(path: str, demo: str | None) -> list[Any]:
-    """The seed-format files `path` names (all, or the one `--demo` names), read; [] when `path` is an
-    HDF5 dataset."""
-    from fetch.dataset.npz import load_npz, npz_files
-    from fetch.errors import FetchError
-
-    files = npz_files(path)
-    if files and demo is not None:
-        chosen = [f for f in files if demo in (f.stem, f.name)]
-        if not chosen:
-            raise FetchError(f"no demo file {demo!r}; this directory has {', '.join(f.stem for f in files[:5])}"
-                             + (" ..." if len(files) > 5 else ""))
-        files = chosen
-    return [load_npz(f) for f in files]
-
-
-def run_check(args: argparse.Namespace) -> int:
-    with contextlib.ExitStack() as stack:
-        return _check(args, stack)
-
-
-def _check(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
-    import gymnasium
-
-    import fetch  # noqa: F401
-    from fetch._progress import progress
-    from fetch.dataset import open_dataset
-    from fetch.dataset.npz import check_npz
-    from fetch.dataset.replay import check_demo, make_replay_env, other_model
-    from fetch.dataset.validation import require_valid
-
-    if demos := _npz_demos(args.file, args.demo):
-        env = gymnasium.make(str(demos[0].metadata["env_id"])).unwrapped
-        checks = (check_npz(d, env) for d in demos)
-        names = [d.path.name for d in demos]
-    else:
-        ds = stack.enter_context(open_dataset(args.file))
-        names = ds.select(args.demo)
-        require_valid(ds, names, images=False)
-        env = make_replay_env(ds)
-        if note := other_model(ds, env):
-            print(note)
-        checks = (check_demo(ds, name, env) for name in names)
-    failures = 0
-    largest: tuple[float, str] = (0.0, "")
-    for r in progress(checks, len(names), "replay"):
-        ok = r.exact and r.success_recorded == r.success_replayed
-        failures += not ok
-        dev = r.largest
-        if dev.value >= largest[0]:
-            largest = (dev.value, f"{r.name} {dev.where}")
-        if not ok or args.verbose:
-            success = "" if r.success_recorded == r.success_replayed else \
-                f"; success recorded {r.success_recorded}, replayed {r.success_replayed}"
-            verdict = "exact" if r.exact else f"DEVIATES; largest deviation {dev.value:.3g} at {dev.where}"
-            print(f"{r.name}: {r.steps} steps, {verdict}{success}")
-    env.close()
-    print(f"replayed {len(names)} demo(s): {len(names) - failures} exact, {failures} deviating; largest "
-          f"deviation {largest[0]:.3g}" + (f" ({largest[1]})" if largest[0] else ""))
-    return 1 if failures else 0
-
-
 def run_render_obs(args: argparse.Namespace) -> int:
     from fetch.dataset.render_obs import describe, render_obs
 
@@ -284,6 +176,7 @@ def _version() -> str:
 
 def _parser() -> argparse.ArgumentParser:
     from fetch.dataset.reader import FILE_HELP  # h5py, which export and view import here anyway
+    from fetch.dataset.replay import add_replay_parser
 
     p = argparse.ArgumentParser(prog="gym-fetch", description=__doc__)
     p.add_argument("--version", action="version", version=_version())
@@ -294,20 +187,7 @@ def _parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="summarise and validate a dataset; non-zero exit if it is inconsistent")
     i.add_argument("file", help=FILE_HELP)
     i.set_defaults(run=run_info)
-    r = sub.add_parser("replay", help="re-simulate demos and compare them with what was recorded, or render "
-                                      "them to video")
-    r.add_argument("file", help=FILE_HELP)
-    r.add_argument("--demo", default=None, help="a demo index or name, e.g. 3 or demo_3 (default: all)")
-    r.add_argument("--check", action="store_true",
-                   help="compare observations and states bit for bit (what replay does without --video)")
-    r.add_argument("--verbose", action="store_true", help="a line per demo, exact or not")
-    r.add_argument("--video", default=None, metavar="OUT",
-                   help="render the saved states to OUT (.mp4 or .gif), one frame per state; with several demos "
-                        "one file each, named OUT_demo_<i>")
-    r.add_argument("--camera", default="front", help="the video's camera: front (default), side, behind or wrist")
-    r.add_argument("--size", type=int, default=480, help="video width and height [px] (default 480)")
-    r.add_argument("--fps", type=float, default=None, help="frames per second (default: the control rate, 25)")
-    r.set_defaults(run=run_replay)
+    add_replay_parser(sub, FILE_HELP)
     o = sub.add_parser("render-obs", help="add a camera's images to every demo, rendered from the saved states")
     o.add_argument("file", help=FILE_HELP)
     o.add_argument("--camera", required=True, help="a camera of the env, e.g. front or wrist")
