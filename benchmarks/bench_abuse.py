@@ -6,7 +6,7 @@ After every step: the deepest contact (-dist over all contacts) and which geoms,
 free body (linear speed [m/s]). Prints a table; docs/benchmarks.md holds the numbers.
 
 `--contacts mujoco` gives our room's geoms MuJoCo's default contacts, as they were before the
-room's stiff ones (fetch.robot.ROOM_SOLREF). `--experts N` adds the experts' success under the
+room's stiff ones (fetch.scene.ROOM_SOLREF). `--experts N` adds the experts' success under the
 chosen contacts; `--cost` times ordinary random steps both ways, alternating in one run.
 
     python benchmarks/bench_abuse.py --steps 10000 --experts 200
@@ -26,7 +26,7 @@ import numpy as np
 
 import fetch
 from expert_success import evaluate  # benchmarks/ is the script's directory, so on sys.path
-from fetch.robot import MUJOCO_SOLIMP, MUJOCO_SOLREF, ROOM_SOLIMP, ROOM_SOLREF
+from fetch.scene import MUJOCO_SOLIMP, MUJOCO_SOLREF, ROOM_SOLIMP, ROOM_SOLREF
 
 DEPTH_BAR, LAUNCH_BAR = 0.005, 1.0
 """Issue 20's bars: [m] the deepest contact, [m/s] the fastest launch."""

@@ -24,7 +24,7 @@ import numpy as np
 
 import fetch  # noqa: F401  (registers the ids)
 from bench_abuse import measure  # benchmarks/ is the script's directory, so on sys.path
-from fetch.robot import ROOM_SOLIMP, ROOM_SOLREF, _delete
+from fetch.scene import ROOM_SOLIMP, ROOM_SOLREF, _delete
 from fetch.timing import N_SUBSTEPS
 
 VARIANTS = ((3000, 300, 100), (10000, 600, 150), (10000, 600, 300), (30000, 1200, 300))

@@ -258,9 +258,9 @@ def test_workspace_limits_hold_a_stick_held_for_200_steps(env_id: str, direction
 def test_the_hand_driven_down_onto_the_object_sinks_in_by_a_few_mm_at_most(env_id: str, limit: float) -> None:
     """Fingers shut, 8 cm over the task's object, then a stick held down at full speed. With MuJoCo's
     default contacts the block sank 36-40 mm into the table or the bin's floor and the fingers 17-24 mm
-    into the drawer's handle; the room's stiff contacts (fetch.robot.ROOM_SOLREF) keep it to a few mm,
+    into the drawer's handle; the room's stiff contacts (fetch.scene.ROOM_SOLREF) keep it to a few mm,
     and in the drawer tasks, where the fingers meet the furniture with its stiff contacts alone
-    (fetch.robot.firm_furniture; 1.3-2.8 mm with an even mix of the two), to nothing.
+    (fetch.scene.firm_furniture; 1.3-2.8 mm with an even mix of the two), to nothing.
     benchmarks/bench_abuse.py has the figures under random abuse."""
     env = gym.make(env_id, max_episode_steps=500)
     u = env.unwrapped

@@ -8,7 +8,7 @@ import subprocess
 import sys
 
 import fetch
-from fetch.robot import SCENE_XML, robot_asset_dir
+from fetch.scene import SCENE_XML, robot_asset_dir
 
 
 def _run(code: str) -> subprocess.CompletedProcess[str]:

@@ -14,6 +14,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("fetch._environ", "fetch._gl", "fetch._processes", "fetch._progress", "fetch._durable", "fetch.errors",
      "fetch.timing", "fetch.stopping"),
     ("fetch.robot",),
+    ("fetch.scene",),
     ("fetch.observation", "fetch.tasks"),
     ("fetch.rendering", "fetch.env", "fetch"),
     ("fetch.vector",),

@@ -12,7 +12,7 @@ import h5py
 import pytest
 
 from fetch import env as env_module
-from fetch import robot
+from fetch import scene
 from fetch.cli import main
 from fetch.dataset import open_dataset
 
@@ -46,8 +46,8 @@ def test_the_same_model_installed_elsewhere_has_the_same_hash(tmp_path: pathlib.
     portable, legacy = here.model_hash(), here.legacy_model_hash()
     elsewhere = tmp_path / "another" / "site-packages" / "assets"
     for part in ("fetch", "stls/fetch", "textures"):
-        shutil.copytree(robot.robot_asset_dir() / part, elsewhere / part)
-    monkeypatch.setattr(robot, "robot_asset_dir", lambda: elsewhere)
+        shutil.copytree(scene.robot_asset_dir() / part, elsewhere / part)
+    monkeypatch.setattr(scene, "robot_asset_dir", lambda: elsewhere)
     env_module._compile.cache_clear()
     env_module._portable_hash.cache_clear()
     there = gym.make(ENV_ID).unwrapped

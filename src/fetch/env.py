@@ -19,7 +19,8 @@ from gymnasium.error import ResetNeeded
 from fetch import observation as ob
 from fetch import rendering
 from fetch.errors import FetchError, UnknownNameError
-from fetch.robot import ACTION_STEP, GRIPPER_QUAT, Robot, build_spec, firm_furniture
+from fetch.robot import ACTION_STEP, GRIPPER_QUAT, Robot
+from fetch.scene import build_spec, firm_furniture
 from fetch.tasks import mirroring_ids, task_class
 from fetch.tasks.base import FINGER_PAIRS, Start, Task, goal_distance, mocap_index
 from fetch.timing import CONTROL_DT, N_SUBSTEPS

@@ -18,7 +18,7 @@ GOAL_GROUP = 2
 
 
 CAMERAS = ("front", "side", "behind", "wrist")
-"""The cameras this package adds to every scene, the ones to choose from (`robot.CAMERAS` places the first
+"""The cameras this package adds to every scene, the ones to choose from (`scene.CAMERAS` places the first
 three; `wrist` rides on the gripper). The robot model's own (head_camera_rgb, ...) still render when
 named, but are not offered."""
 

@@ -80,7 +80,7 @@ class Task(abc.ABC):
     grip site, so a demo reflected in it is a demo of the task (`gym-fetch train --mirror`; a test
     checks the scene, the start and the hand's motion of each task that says so)."""
     firm_furniture: ClassVar[bool] = False
-    """whether the fingers meet the room's furniture with its stiff contacts (`fetch.robot.firm_furniture`):
+    """whether the fingers meet the room's furniture with its stiff contacts (`fetch.scene.firm_furniture`):
     where nothing free can be pinched between the two (bench_abuse.py)."""
 
     @abc.abstractmethod

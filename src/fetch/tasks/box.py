@@ -8,7 +8,8 @@ import mujoco
 import numpy as np
 
 from fetch import observation as ob
-from fetch.robot import MUJOCO_SOLIMP, MUJOCO_SOLREF, RobotConfig
+from fetch.robot import RobotConfig
+from fetch.scene import MUJOCO_SOLIMP, MUJOCO_SOLREF
 from fetch.tasks.base import TABLE_TOP, FreeObject, Start, Task, box_geom, mocap_index, object_parts
 from fetch.tasks.subtasks import GOAL, Grasped, Lifted, Subtask
 
@@ -42,7 +43,7 @@ def add_box_and_lid(spec: mujoco.MjSpec) -> None:
     box.add_site(name="box", size=[0.01, 0.01, 0.01], rgba=[0, 0, 0, 0])
     lid = spec.worldbody.add_body(name="lid", pos=[1.9, 1.5, ON_TABLE_Z])
     lid.add_freejoint(name="lid:joint")
-    # The lid keeps MuJoCo's default contacts, not the room's stiff ones (fetch.robot.ROOM_SOLREF):
+    # The lid keeps MuJoCo's default contacts, not the room's stiff ones (fetch.scene.ROOM_SOLREF):
     # with stiff contacts on both sides, the thin light plate pressed between the fingers and a wall
     # made the simulation unstable under abuse (it flew off at hundreds of m/s; bench_abuse.py).
     soft = {"solref": list(MUJOCO_SOLREF), "solimp": list(MUJOCO_SOLIMP)}
