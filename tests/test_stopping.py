@@ -177,4 +177,10 @@ def test_a_stop_while_the_handlers_are_put_back_is_still_the_exit_status(monkeyp
         time.sleep(0.05)  # the handler runs here, in the teardown
 
     monkeypatch.setattr(stopping, "environ", environ)
-    assert cli.main(["info", "/nonexistent/demos"]) == 128 + signal.SIGTERM  # not a traceback, not 2
+    before = {s: signal.getsignal(s) for s in stopping.STOP_SIGNALS}
+    try:
+        assert cli.main(["info", "/nonexistent/demos"]) == 128 + signal.SIGTERM  # not a traceback, not 2
+        stopping.raise_if_stopped()  # outside the command: its stop is not the caller's
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)

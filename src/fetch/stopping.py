@@ -49,7 +49,7 @@ def _stop(signum: int, frame: FrameType | None) -> None:
         os.write(2, b"still finishing the saves; they will complete, then the session stops\n")
         return
     _STATE.requested = signum
-    if not _STATE.polled:
+    if not _STATE.polled or not _STATE.depth:  # outside `stop_on_signals` nothing asks for it later
         raise Stopped(signum)
 
 
@@ -67,10 +67,11 @@ def _dropped(unraisable: Any) -> None:
 
 
 def raise_if_stopped() -> None:
-    """Raise `Stopped` if a stop signal arrived and was not acted on: the exception its handler raised
-    can be lost (Python ignores exceptions raised in a weakref callback or `__del__`), so the control
-    loop asks once per tick."""
-    if _STATE.requested is not None and not _STATE.handled:
+    """Raise `Stopped` if a stop signal arrived inside `stop_on_signals` and was not acted on: the
+    exception its handler raised can be lost (Python ignores exceptions raised in a weakref callback or
+    `__del__`), so the control loop asks once per tick. Outside, a stop an earlier command received
+    (in the same process: the Python API after `fetch.cli.main`) is not this caller's."""
+    if _STATE.requested is not None and not _STATE.handled and _STATE.depth:
         raise Stopped(_STATE.requested)
 
 
