@@ -70,6 +70,17 @@ class StdoutError(OSError):
     """Stdout could not be written (`> /dev/full`, a failing terminal): the command's report, not its work."""
 
 
+@contextlib.contextmanager
+def _as_stdout_error() -> Iterator[None]:
+    """An OSError inside, but a BrokenPipeError, raised again as a `StdoutError`."""
+    try:
+        yield
+    except BrokenPipeError:
+        raise
+    except OSError as e:
+        raise StdoutError(e.errno, e.strerror) from e
+
+
 class _GuardedStdout:
     """Stdout, with its write errors told apart from every other OSError (`StdoutError`)."""
 
@@ -77,20 +88,12 @@ class _GuardedStdout:
         self._stream = stream
 
     def write(self, text: str) -> int:
-        try:
+        with _as_stdout_error():
             return int(self._stream.write(text))
-        except BrokenPipeError:
-            raise
-        except OSError as e:
-            raise StdoutError(e.errno, e.strerror) from e
 
     def flush(self) -> None:
-        try:
+        with _as_stdout_error():
             self._stream.flush()
-        except BrokenPipeError:
-            raise
-        except OSError as e:
-            raise StdoutError(e.errno, e.strerror) from e
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._stream, name)

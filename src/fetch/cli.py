@@ -220,17 +220,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from fetch.stopping import stop_on_signals
-
-    try:
-        with stop_on_signals():  # from the start: a Ctrl-C or SIGTERM while loading ends cleanly too
-            try:
-                parser = _parser()
-            except KeyboardInterrupt as e:
-                return _stopped(e)
-            return _run(parser.parse_args(argv))
-    except KeyboardInterrupt as e:  # landed while the handlers were put back, the work done
-        return _stopped(e)
+    # The parser is built inside: a Ctrl-C or SIGTERM while loading ends cleanly too.
+    return _stoppable(lambda: _parser().parse_args(argv))
 
 
 def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_demo.py") -> int:
@@ -239,12 +230,18 @@ def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_d
                                 "every flag with its meaning; the same as `gym-fetch collect`.")
     add_collect_arguments(p)
     p.set_defaults(run=run_collect, command="collect")
+    return _stoppable(lambda: p.parse_args(argv), prog)
+
+
+def _stoppable(parse: Callable[[], argparse.Namespace], prog: str | None = None) -> int:
+    """Parse the arguments and run the command with the stop handlers held (`fetch.stopping`): the exit
+    status, 128 + the signal after a stop."""
     from fetch.stopping import stop_on_signals
 
     try:
         with stop_on_signals():
-            return _run(p.parse_args(argv), prog)
-    except KeyboardInterrupt as e:  # landed while the handlers were put back, the work done
+            return _run(parse(), prog)
+    except KeyboardInterrupt as e:  # while parsing, or landed while the handlers were put back
         return _stopped(e)
 
 
@@ -265,18 +262,15 @@ def _run(args: argparse.Namespace, prog: str | None = None) -> int:
         return 2 if stop is None else _stopped(stop)
     except KeyboardInterrupt as e:
         return _stopped(e)
-    except BrokenPipeError as e:
-        # A stop signal can break a pipe to a worker while the work is being wound down: that is
-        # still the stop. Otherwise our stdout's reader went away (`| head`).
-        stop = _stop_behind(e)
-        if stop is not None:
-            return _stopped(stop)
-        stdout_gone()
-        return 1
     except OSError as e:  # what no tool turned into a FetchError: one line, not a traceback
+        # A stop signal can break a pipe to a worker while the work is being wound down: that is
+        # still the stop.
         stop = _stop_behind(e)
         if stop is not None:
             return _stopped(stop)
+        if isinstance(e, BrokenPipeError):  # our stdout's reader went away (`| head`)
+            stdout_gone()
+            return 1
         name = prog or "gym-fetch " + args.command
         if isinstance(e, StdoutError):  # `> /dev/full`: the work is done, its report could not be written
             stdout_gone()

@@ -67,14 +67,14 @@ def journal_of(path: pathlib.Path) -> pathlib.Path:
     return path.with_name(f".{path.name}.rewrites")
 
 
-def finish_rewrites(index: pathlib.Path) -> bool:
+def finish_rewrites(index: pathlib.Path) -> None:
     """Make the renames that a `Rewrites` stopped part-way through (a SIGKILL between them) noted
-    beside `index`; the caller holds the dataset (`editing`). True if there were any."""
+    beside `index`, if any; the caller holds the dataset (`editing`)."""
     journal = journal_of(index)
     try:
         renames = json.loads(journal.read_text())
     except FileNotFoundError:
-        return False
+        return
     except (OSError, ValueError) as e:
         raise DatasetError(f"{journal} (the renames of an interrupted edit) cannot be read: {e}; "
                            "remove it if the dataset reads as it should") from e
@@ -85,7 +85,6 @@ def finish_rewrites(index: pathlib.Path) -> bool:
         fsync_path(directory)
     journal.unlink()
     fsync_path(index.parent)
-    return True
 
 
 def _lock_file(lock: pathlib.Path, dataset: pathlib.Path) -> Any:

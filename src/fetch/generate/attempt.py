@@ -140,6 +140,9 @@ class Generator:
         self.buffer = EpisodeBuffer(recorded_layout(self.env), capacity=self.max_steps)
         self._obs: dict[str, np.ndarray] = {}  # the env's latest observation
         self._start_in_frame = [np.stack([s[k].hand_in_frame() for s in sources]) for k in range(len(self.subtasks))]
+        # Only the first part approaches an object that nothing has touched yet (`pass_over`).
+        self._loose = [self.scene.loose(s.reference) if k == 0 and s.done is not None else None
+                       for k, s in enumerate(self.subtasks)]
 
     def choose(self, k: int, frame: Frame, held: np.ndarray, rng: np.random.Generator) -> Segment:
         """The source segment for subtask `k`, the hand being at `held` [m] and its frame at `frame`."""
@@ -211,9 +214,7 @@ class Generator:
             frame = subtask.frame(self.scene, base.data)
             segment = self.choose(k, frame, held, rng)
             choices.append((segment.demo, segment.start, segment.end))
-            # Only the first part approaches an object that nothing has touched yet.
-            loose = self.scene.loose(subtask.reference) if k == 0 and subtask.done is not None else None
-            path, grips, openings = self.plan(segment, frame, held, loose)
+            path, grips, openings = self.plan(segment, frame, held, self._loose[k])
             for i, (target, grip) in enumerate(zip(path, grips, strict=True)):
                 opening = None if openings is None else float(openings[i])
                 success, held_for = self._step(target, grip, opening, rng, held_for)
