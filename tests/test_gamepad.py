@@ -399,7 +399,8 @@ def test_calibration_finds_each_raw_index_and_the_profile_drives_the_pad(pad: vp
                "lt": lambda: pad.set_axis("lefttrigger", 1.0), "rt": lambda: pad.set_axis("righttrigger", 1.0),
                "gripper": lambda: pad.press("a"), "discard": lambda: pad.press("y"),
                "quit": lambda: pad.press("back"), "precision": lambda: pad.press("rightshoulder"),
-               "camera": lambda: pad.press("leftshoulder"), "finish": lambda: pad.press("b")}
+               "camera": lambda: pad.press("leftshoulder"), "finish": lambda: pad.press("b"),
+               "rewind": lambda: pad.press("rightstick")}
 
     def release() -> None:
         pad.set_stick(0.0, 0.0)
@@ -420,7 +421,7 @@ def test_calibration_finds_each_raw_index_and_the_profile_drives_the_pad(pad: vp
         raw.close()
     assert [r for r in asked if r not in ("rest", "release")] == list(actions)
     assert config.bindings() == {"lx": 0, "ly": 1, "lt": 4, "rt": 5, "gripper": 0, "discard": 3, "quit": 4,
-                                 "precision": 10, "camera": 9, "finish": 1}
+                                 "precision": 10, "camera": 9, "finish": 1, "rewind": 8}
     assert config.invert_y is True and config.trigger_range == "-1..1" and config.deadzone == 0.2
     path = tmp_path / "pad.json"
     config.save_profile(path)

@@ -102,6 +102,12 @@ class EpisodeBuffer:
         self.timestamps[t] = timestamp
         self.length = t + 1
 
+    def rewind(self, steps: int) -> np.ndarray:
+        """Forget the last `steps` steps (all there are, at most); returns the state the episode is then in,
+        for `env.set_state` (a view into the buffer, valid until the next `record`)."""
+        self.length = max(self.length - int(steps), 0)
+        return self.states[self.length]
+
     def demo(self, attrs: Mapping[str, Any]) -> Demo:
         """The episode so far as a `Demo` of copies (the buffer can be reused at once)."""
         t = self.length

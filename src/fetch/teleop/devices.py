@@ -24,6 +24,8 @@ class Command:
     `discard` ends the attempt and drops it; `finish` ends it and keeps it if it succeeded;
     `quit` ends the session; `paused` (e.g. a pad unplugged) holds the arm without stepping;
     `switch_camera` asks the viewer for the next camera; `precision` says slow mode is on (HUD);
+    `rewind` takes the attempt back that many steps (the person's undo; a device that sends it has a
+    `rewound(action)` method, told the last action kept so its gripper toggle matches the fingers);
     `gripper_closed` is the state a device with a gripper toggle holds (None: read from the
     action's sign, for devices that send a[3] directly). `label` is the action the device meant when
     the one it sends is deliberately perturbed (the expert under DART noise): it is recorded beside the
@@ -41,6 +43,7 @@ class Command:
     """A short line for the HUD (e.g. "precision", "pad disconnected")."""
     gripper_closed: bool | None = None
     label: np.ndarray | None = None
+    rewind: int = 0
 
     @property
     def closes_gripper(self) -> bool:
@@ -48,6 +51,12 @@ class Command:
         if self.gripper_closed is not None:
             return self.gripper_closed
         return bool(self.action[3] < 0)
+
+    @property
+    def acts(self) -> bool:
+        """Whether this command does something to the scene: moves the hand, closes the fingers, or ends
+        the attempt keeping it (what starts a person's clock)."""
+        return bool(np.any(self.action[:3] != 0)) or self.closes_gripper or self.finish
 
 
 def idle() -> np.ndarray:
@@ -60,33 +69,60 @@ def rotate(x: float, y: float, yaw: float) -> tuple[float, float]:
     return c * x - s * y, s * x + c * y
 
 
+REWIND_STEPS = 25
+"""Steps one rewind takes back: a second at the person's 25 Hz."""
+REWIND_REPEAT = 12
+"""[ticks] while the rewind control stays held, it takes another `REWIND_STEPS` back this often (about
+twice a second), so holding it runs the attempt backwards."""
+
+
 @dataclasses.dataclass
 class HandControls:
     """The part that a pad and a keyboard share: a gripper toggled by presses, one-shot events, a
-    precision mode. `command` turns one tick's motion and presses into a `Command`."""
+    precision mode, rewind. `command` turns one tick's motion and presses into a `Command`."""
 
     gripper_open: float = 1.0
     gripper_close: float = -1.0
     precision_scale: float = 0.3
     gripper_closed: bool = False
+    _rewind_held: int = 0
 
     def reset(self) -> None:
         """A new attempt: the gripper opens."""
         self.gripper_closed = False
+        self._rewind_held = 0
+
+    def rewound(self, action: np.ndarray | None) -> None:
+        """The attempt went back to just after `action` (None: to its start): the gripper toggle takes the
+        state that action had, so the fingers do not jump at the next step."""
+        self.gripper_closed = action is not None and \
+            abs(float(action[3]) - self.gripper_close) < abs(float(action[3]) - self.gripper_open)
 
     def command(self, motion: tuple[float, float, float], pressed: Collection[str], precision: bool,
-                scale: float = 1.0) -> Command:
+                scale: float = 1.0, rewinding: bool = False) -> Command:
         """`motion` (dx, dy, dz, world frame, each in [-1, 1] at full input) times `scale` (and the
         precision scale while `precision` is held); `pressed`: the roles pressed since the last tick
-        ("gripper", "discard", "finish", "quit", "camera")."""
+        ("gripper", "discard", "finish", "quit", "camera", "rewind"); `rewinding`: the rewind control is
+        held now (a press rewinds `REWIND_STEPS`, and so does every `REWIND_REPEAT`-th tick it stays held;
+        the ticks between pause the arm)."""
         if "gripper" in pressed:
             self.gripper_closed = not self.gripper_closed
+        rewind = 0
+        if "rewind" in pressed:
+            self._rewind_held, rewind = 1, REWIND_STEPS
+        elif rewinding and self._rewind_held:
+            self._rewind_held += 1
+            rewind = REWIND_STEPS if self._rewind_held % REWIND_REPEAT == 1 else 0
+        else:
+            self._rewind_held = 0
+        holding = self._rewind_held > 0  # between a held rewind's jumps the arm waits: nothing is recorded
         scale *= self.precision_scale if precision else 1.0
         gripper = self.gripper_close if self.gripper_closed else self.gripper_open
         action = np.array([motion[0] * scale, motion[1] * scale, motion[2] * scale, gripper], np.float32)
         return Command(action, discard="discard" in pressed, finish="finish" in pressed, quit="quit" in pressed,
                        switch_camera="camera" in pressed, precision=precision,
-                       status="precision" if precision else "", gripper_closed=self.gripper_closed)
+                       status="rewinding" if holding else "precision" if precision else "",
+                       gripper_closed=self.gripper_closed, rewind=rewind, paused=holding)
 
 
 class Device(Protocol):
@@ -130,7 +166,8 @@ class DeviceKind:
     """A person drives it: the collector opens a window (when there is a display) and paces the arm
     at the env's real-time rate."""
     legend: tuple[str, ...]
-    """The controls, one line each, as the viewer shows them (required when a person drives it)."""
+    """The controls, one entry each ("Z: rewind 1 s"), as the viewer shows them, wrapped to its width
+    (required when a person drives it)."""
     summary: str
     """One line for `--help`."""
     add_arguments: Callable[[Any], None] | None

@@ -17,8 +17,8 @@ MOVE_KEYS: dict[str, tuple[int, int, int]] = {
 }
 """Held keys: (right, up in the view, z)."""
 PRECISION_KEYS = ("left shift", "right shift")
-GRIPPER_KEY, CAMERA_KEY, FINISH_KEYS, DISCARD_KEYS, QUIT_KEY = "space", "c", ("return", "enter"), ("backspace", "y"), \
-    "escape"
+GRIPPER_KEY, CAMERA_KEY, FINISH_KEYS, DISCARD_KEYS, QUIT_KEY, REWIND_KEY = "space", "c", ("return", "enter"), \
+    ("backspace", "y"), "escape", "z"
 
 
 def keyboard_command(held: Collection[str], pressed: Collection[str], controls: HandControls,
@@ -31,11 +31,12 @@ def keyboard_command(held: Collection[str], pressed: Collection[str], controls: 
             x, y, z = x + dx, y + dy, z + dz
     x, y = rotate(min(max(x, -1.0), 1.0), min(max(y, -1.0), 1.0), yaw)
     roles = {role for role, keys in _ROLE_KEYS.items() if any(k in pressed for k in keys)}
-    return controls.command((x, y, min(max(z, -1.0), 1.0)), roles, any(k in held for k in PRECISION_KEYS))
+    return controls.command((x, y, min(max(z, -1.0), 1.0)), roles, any(k in held for k in PRECISION_KEYS),
+                            rewinding=REWIND_KEY in held)
 
 
 _ROLE_KEYS = {"gripper": (GRIPPER_KEY,), "camera": (CAMERA_KEY,), "finish": FINISH_KEYS, "discard": DISCARD_KEYS,
-              "quit": (QUIT_KEY,)}
+              "quit": (QUIT_KEY,), "rewind": (REWIND_KEY,)}
 
 
 class KeyboardDevice:
@@ -51,10 +52,13 @@ class KeyboardDevice:
         self.yaw = yaw
         self.controls = HandControls()
         self._codes = {name: pygame.key.key_code(name) for name in
-                       [*MOVE_KEYS, *PRECISION_KEYS]}
+                       [*MOVE_KEYS, *PRECISION_KEYS, REWIND_KEY]}
 
     def reset(self) -> None:
         self.controls.reset()
+
+    def rewound(self, action: np.ndarray | None) -> None:
+        self.controls.rewound(action)
 
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
         pg = self.pygame
@@ -79,5 +83,6 @@ def build_keyboard(context: DeviceContext) -> KeyboardDevice:
 KIND = DeviceKind(
     name="keyboard", human=True, add_arguments=None, build=build_keyboard,
     summary="keys in the viewer window (needs a display)",
-    legend=("arrows / WASD: move x/y   R/F: up/down   SPACE: open/close gripper",
-            "SHIFT hold: precision   C: camera   ENTER: keep attempt   BACKSPACE: discard   ESC: quit"))
+    legend=("arrows / WASD: move x/y", "R/F: up/down", "SPACE: open/close gripper", "SHIFT hold: precision",
+            "Z: rewind 1 s (hold: more)", "C: camera", "F11: full screen", "ENTER: keep attempt",
+            "BACKSPACE: discard", "ESC: quit"))

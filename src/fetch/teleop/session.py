@@ -116,6 +116,16 @@ class HudState:
     gripper_closed: bool
     precision: bool = False
     status: str = ""
+    waiting: bool = False
+    """The attempt's clock has not started: nothing moves until the person's first input."""
+    dt: float = 0.04
+    """[s] one step, to show the time left."""
+    rewound: int = 0
+    """Steps taken back in this attempt."""
+
+    @property
+    def seconds_left(self) -> float:
+        return max(self.max_steps - self.step, 0) * self.dt
 
 
 class Display(Protocol):
@@ -141,6 +151,8 @@ class Attempt:
     ended_by: str  # "success", "finish", "discard", "time limit", "terminated", "quit"
     saved_as: str | None
     achieved_hz: float
+    rewound: int = 0
+    """Steps the person took back (`Command.rewind`): not in the saved demo."""
 
 
 @dataclasses.dataclass
@@ -297,13 +309,17 @@ class Session:
         self.device.reset()
         buf.begin(obs, self.base.get_state())
         started = time.time()
-        held = 0
+        held = rewound = stepped = 0
         success = False
         ended_by = "time limit"
+        # A person's clock starts at their first input: until then the arm holds still (as with a pad
+        # unplugged), so reading the window or the legend costs no time of the attempt.
+        waiting = cfg.human
         self.clock.restart()
         command = Command(np.zeros(4, np.float32))
+        first = last = 0.0
         while True:
-            self._show(number, buf.length, info, held, command)
+            self._show(number, buf.length, info, held, command, waiting, rewound)
             deadline = self.clock.wait()
             raise_if_stopped()
             polled = time.perf_counter()
@@ -316,10 +332,18 @@ class Session:
             if command.discard:
                 ended_by = "discard"
                 break
-            if command.paused:
+            if command.rewind:
+                rewound += min(command.rewind, buf.length)
+                obs, info = self._rewind(command.rewind)
+                held = 0
                 continue
+            if command.paused or (waiting and not command.acts):
+                continue
+            waiting = False
             self._gripper_closed = command.closes_gripper
             now = time.time()
+            first, last = first or now, now
+            stepped += 1
             obs, reward, terminated, truncated, info = env.step(np.asarray(command.action, dtype=np.float32))
             action = self.base.last_action  # as the env clipped and applied it
             self.ticks.append((deadline, polled, time.perf_counter()))
@@ -340,8 +364,8 @@ class Session:
                 ended_by = "terminated"
                 break
         t = buf.length
-        stamps = buf.timestamps[:t]
-        achieved = (t - 1) / (stamps[-1] - stamps[0]) if t > 1 and stamps[-1] > stamps[0] else 0.0
+        # Every step taken counts towards the rate, the rewound ones too.
+        achieved = (stepped - 1) / (last - first) if stepped > 1 and last > first else 0.0
         saved_as = None
         # Quitting mid-attempt keeps it only if it had already succeeded (no partial failures).
         keep = success or (cfg.keep_failures and ended_by != "quit")
@@ -353,9 +377,24 @@ class Session:
                 self.log(f"saving is {self.writer.behind} demos behind; waiting for the writer")
             saved_as = self.writer.commit(demo)
             self.committed += 1
-        return Attempt(number, seed, t, success, ended_by, saved_as, achieved)
+        return Attempt(number, seed, t, success, ended_by, saved_as, achieved, rewound)
 
-    def _show(self, number: int, step: int, info: dict[str, Any], held: int, command: Command) -> None:
+    def _rewind(self, steps: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Take the attempt back `steps` steps (to its start at most): the env returns to the state it
+        was in then, the buffer forgets the steps after it (so the saved demo is the path that was kept,
+        and replays exactly), and the device's gripper toggle matches the fingers again. Returns the
+        observation and info there."""
+        buf = self.buffer
+        self.base.set_state(buf.rewind(steps))
+        last = buf.actions[buf.length - 1] if buf.length else None
+        self._gripper_closed = bool(last is not None and last[3] < 0)
+        rewound = getattr(self.device, "rewound", None)
+        if rewound is not None:
+            rewound(last)
+        return cast(tuple[dict[str, np.ndarray], dict[str, Any]], self.base.observe())
+
+    def _show(self, number: int, step: int, info: dict[str, Any], held: int, command: Command,
+              waiting: bool = False, rewound: int = 0) -> None:
         if self.display is None:
             return
         self.display.show(HudState(
@@ -363,4 +402,5 @@ class Session:
             step=step, max_steps=self.config.max_steps, success=info.get("is_success", 0.0) >= 1.0, held=held,
             hold_needed=self.config.success_hold_steps, gripper_closed=self._gripper_closed,
             precision=command.precision,
-            status=command.status or (f"saving: {self.writer.behind} queued" if self.writer.behind else "")))
+            status=command.status or (f"saving: {self.writer.behind} queued" if self.writer.behind else ""),
+            waiting=waiting, dt=self.base.dt, rewound=rewound))

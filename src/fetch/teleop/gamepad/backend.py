@@ -216,6 +216,9 @@ class GamepadDevice:
     def reset(self) -> None:
         self.mapper.reset()
 
+    def rewound(self, action: np.ndarray | None) -> None:
+        self.mapper.controls.rewound(action)
+
     def poll(self, obs: Mapping[str, np.ndarray] | None = None) -> Command:
         if not self.pad.update():
             return Command(idle(), paused=True, status=DISCONNECTED)
@@ -243,5 +246,6 @@ KIND = DeviceKind(
     name="gamepad", human=True, aliases=("xbox",), add_arguments=add_collect_arguments,
     summary="an Xbox (or any SDL) game pad; xbox is the seed's name for it",
     build=lambda context: gamepad_from_args(context.args, yaw=context.yaw),
-    legend=("left stick: move x/y   RT/LT: up/down   X: open/close gripper",
-            "RB hold: precision   LB: camera   B: keep attempt   Y: discard   START: quit"))
+    legend=("left stick: move x/y", "RT/LT: up/down", "X: open/close gripper", "RB hold: precision",
+            "BACK: rewind 1 s (hold: more)", "LB: camera", "F11: full screen", "B: keep attempt", "Y: discard",
+            "START: quit"))

@@ -36,8 +36,9 @@ CONTROLS = {
     "precision": ("button_precision", "rightshoulder", "hold for slow, precise motion"),
     "camera": ("button_camera", "leftshoulder", "switch the camera view"),
     "finish": ("button_finish", "b", "end the attempt and keep it if it succeeded"),
+    "rewind": ("button_rewind", "back", "rewind the attempt one second (held: keep going back)"),
 }
-OPTIONAL_CONTROLS = ("precision", "camera", "finish")
+OPTIONAL_CONTROLS = ("precision", "camera", "finish", "rewind")
 """Controls a pad may lack (a raw-index pad SDL does not know leaves them unbound)."""
 
 TRIGGER_RANGES = ("auto", "0..1", "-1..1")
@@ -82,6 +83,7 @@ class GamepadConfig:
     button_precision: Binding = None
     button_camera: Binding = None
     button_finish: Binding = None
+    button_rewind: Binding = None
 
     def __post_init__(self) -> None:
         for name in ("deadzone", "pos_scale", "gripper_open", "gripper_close", "precision_scale"):

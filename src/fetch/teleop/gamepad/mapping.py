@@ -61,8 +61,9 @@ class Mapper:
     """Pad snapshots to commands: the pure part of the gamepad, with the memory that edges and toggles need.
 
     X toggles the gripper on press; Y (discard), START (quit), B (finish) and LB (camera switch) fire once per
-    press; RB scales motion by `precision_scale` while held. Action = float32 (dx, dy, dz = rt - lt,
-    gripper), motion times `pos_scale` (the env clips the action to [-1, 1]).
+    press; RB scales motion by `precision_scale` while held; BACK rewinds a second, and more while held.
+    Action = float32 (dx, dy, dz = rt - lt, gripper), motion times `pos_scale` (the env clips the action to
+    [-1, 1]).
     """
 
     def __init__(self, config: GamepadConfig) -> None:
@@ -100,4 +101,5 @@ class Mapper:
         x, y = rotate(x, y, yaw)
         lt = self._raw_lt(state.lt) if self._raw_lt else min(max(state.lt, 0.0), 1.0)
         rt = self._raw_rt(state.rt) if self._raw_rt else min(max(state.rt, 0.0), 1.0)
-        return self.controls.command((x, y, rt - lt), pressed, "precision" in state.held, cfg.pos_scale)
+        return self.controls.command((x, y, rt - lt), pressed, "precision" in state.held, cfg.pos_scale,
+                                     rewinding="rewind" in state.held)
