@@ -322,6 +322,10 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         """The compiled scene as MJCF (what a dataset stores to say which model it was made with)."""
         return str(self._compiled.spec.to_xml())
 
+    def scene_spec(self) -> mujoco.MjSpec:
+        """A copy of the `MjSpec` this env's model was compiled from (a viewer decorates its own copy)."""
+        return self._compiled.spec.copy()
+
     def model_hash(self) -> str:
         """SHA-256 of the compiled model (MJB bytes) with its mesh and texture files named relative to
         their directories: equal models, equal hashes, wherever installed. (The model itself holds the

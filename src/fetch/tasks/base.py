@@ -79,6 +79,9 @@ class Task(abc.ABC):
     """whether the scene and the start are symmetric about the vertical x-z plane through the start's
     grip site, so a demo reflected in it is a demo of the task (`gym-fetch train --mirror`; a test
     checks the scene, the start and the hand's motion of each task that says so)."""
+    view: ClassVar[str] = "operator"
+    """the camera a person's collection window opens on: the one that shows the task's key contact
+    (`fetch.teleop.scenery.VIEWPOINTS`, or one of the scene's cameras)."""
     firm_furniture: ClassVar[bool] = False
     """whether the fingers meet the room's furniture with its stiff contacts (`fetch.scene.firm_furniture`):
     where nothing free can be pinched between the two (bench_abuse.py)."""

@@ -1,15 +1,16 @@
-"""The collection window: the scene from a switchable camera, a heads-up display and the controls legend.
+"""The collection window: the scene from a switchable camera with the wrist camera inset, a heads-up
+display and the controls legend; resizable, F11 for full screen.
 
 It is a pygame window showing MuJoCo's offscreen rendering, so the same event loop serves the window,
-the keyboard and the gamepad. The scene is rendered on a thread of its own: with software GL a frame
-costs about a control period, and the control loop must never wait for one. pygame is imported here
-only, when a window is asked for.
+the keyboard and the gamepad. What it draws is the window's own copy of the scene, with depth cues a
+person needs (`fetch.teleop.scenery`). The scene is rendered on a thread of its own: with software GL a
+frame costs one to two control periods, and the control loop must never wait for one. pygame is
+imported here only, when a window is asked for.
 """
 
 from __future__ import annotations
 
 import collections
-import math
 import os
 import sys
 import threading
@@ -23,8 +24,10 @@ import numpy as np
 from fetch._environ import environ
 from fetch._gl import check_gl, context_class, has_display
 from fetch.errors import FetchError
-from fetch.rendering import CAMERAS, camera_names
+from fetch.teleop.scenery import Scenery, camera_yaw
 from fetch.teleop.session import HudState
+
+__all__ = ["FrameThread", "Viewer", "camera_yaw"]
 
 MAX_GEOMS = 2000
 """Per scene; the largest task draws under 100 geoms and sites."""
@@ -36,37 +39,41 @@ START_TIMEOUT = 30.0
 """[s] for the render thread to make its GL context (well under a second normally)."""
 STOP_TIMEOUT = 5.0
 """[s] for the render thread to finish its frame and free its GL context."""
-def camera_yaw(model: mujoco.MjModel, data: mujoco.MjData, camera: str) -> float:
-    """[rad] The rotation from the seed's fixed stick mapping (stick up = world +y) to the camera's:
-    stick up then moves the hand away from the viewer, along the camera's view on the table."""
-    cam = model.camera(camera).id
-    forward = -data.cam_xmat[cam].reshape(3, 3)[:, 2]  # a camera looks along its -z axis
-    if math.hypot(forward[0], forward[1]) < 1e-6:  # looking straight down: use its image up
-        forward = data.cam_xmat[cam].reshape(3, 3)[:, 1]
-    return math.atan2(-forward[0], forward[1])
+SIZE = (640, 480)
+"""[px] the window's size when it opens."""
+INSET = (0.28, 160)
+"""The wrist camera's inset: this fraction of the window's width, and at least this many pixels (4:3)."""
+SHADOWS = (True, False)
+"""Shadows in the main view and in the inset: a shadow pass costs a software renderer about as much as
+the main view itself, and the inset has the drop line and spot."""
+MARGIN, LINE = 8, 22
+"""[px] the HUD's and legend's margin and line height."""
 
 
 class FrameThread:
-    """Renders scenes into pixels on a thread of its own, which owns the GL context.
+    """Renders views of scenes into pixels on a thread of its own, which owns the GL context.
 
-    The caller fills `scene` (`mjv_updateScene`, on its own thread, from its own MjData), `post()`s it and
-    gets a free one in its place; the thread draws the newest posted scene whenever it is idle, and
-    `take()` returns the newest finished frame not yet taken. Three scenes and three pixel buffers rotate
-    under one lock, held only for the swaps, so neither side ever waits for the other's work or writes
-    what the other reads. A failure in the thread is kept in `error` for the caller to raise.
+    A frame is `VIEWS` views (the main camera, the inset), each a scene and a size [px, (0, 0): not
+    drawn]. The caller fills `frame` (`mjv_updateScene` into its scenes, on its own thread, from its own
+    MjData, and the sizes), `post()`s it and gets a free one in its place; the thread draws the newest
+    posted frame whenever it is idle, and `take()` returns the newest finished pixels not yet taken.
+    Three frames and three sets of pixel buffers rotate under one lock, held only for the swaps, so
+    neither side ever waits for the other's work or writes what the other reads. A failure in the
+    thread is kept in `error` for the caller to raise.
     """
 
-    def __init__(self, model: mujoco.MjModel, size: tuple[int, int]) -> None:
-        width, height = size
-        # The offscreen buffer must hold the image; this model is the env's own copy.
+    VIEWS = len(SHADOWS)
+
+    def __init__(self, model: mujoco.MjModel, max_size: tuple[int, int]) -> None:
+        width, height = max_size
+        # The offscreen buffer must hold the largest view; this model is the window's own copy.
         model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
         model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
         self._model = model
-        self._size = size
+        self._max = max_size
         self._context = context_class()
-        self._rect = mujoco.MjrRect(0, 0, width, height)
-        self.scene, self._posted, self._drawing = (self._new_scene() for _ in range(3))
-        self._back, self._ready, self._front = (np.zeros((height, width, 3), np.uint8) for _ in range(3))
+        self.frame, self._posted, self._drawing = (self._new_frame() for _ in range(3))
+        self._back, self._ready, self._front = ([np.zeros((0, 0, 3), np.uint8)] * self.VIEWS for _ in range(3))
         self._lock = threading.Condition()
         self._new = self._fresh = self._stop = False
         self.error: BaseException | None = None
@@ -85,23 +92,27 @@ class FrameThread:
                 f"{type(self.error).__name__}: {self.error}; use --render none (headless), or check the "
                 "display's OpenGL (glxinfo)") from self.error
 
-    def _new_scene(self) -> mujoco.MjvScene:
+    def _new_frame(self) -> _Frame:
+        return _Frame([self._new_scene(shadows) for shadows in SHADOWS])
+
+    def _new_scene(self, shadows: bool) -> mujoco.MjvScene:
         scene = mujoco.MjvScene(self._model, maxgeom=MAX_GEOMS)
-        # Reflections and the skybox cost a third of a software-rendered frame (llvmpipe).
+        # Reflections cost a third of a software-rendered frame (llvmpipe); the sky and the shadows
+        # are what a person judges depth by (docs/window.md has what each costs).
         scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-        scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = False
+        scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
         return scene
 
     def post(self) -> None:
-        """Hand `scene` to the render thread; `scene` is then a free one to fill next time."""
+        """Hand `frame` to the render thread; `frame` is then a free one to fill next time."""
         with self._lock:
-            self.scene, self._posted = self._posted, self.scene
+            self.frame, self._posted = self._posted, self.frame
             self._new = True
             self._lock.notify()
 
-    def take(self) -> np.ndarray | None:
-        """The newest frame not yet taken, (H, W, 3) uint8 with OpenGL's bottom-up rows, or None. It stays
-        valid until the next `take`."""
+    def take(self) -> list[np.ndarray] | None:
+        """The newest views not yet taken, each (H, W, 3) uint8 with OpenGL's bottom-up rows (empty where a
+        view was not drawn), or None. They stay valid until the next `take`."""
         with self._lock:
             if not self._fresh:
                 return None
@@ -124,7 +135,7 @@ class FrameThread:
         try:
             _lower_priority(RENDER_NICE)
             # Made, used and freed on this thread: a GL context is current on one thread at a time.
-            gl = self._context(*self._size)
+            gl = self._context(*self._max)
             try:
                 gl.make_current()  # nothing else is current on this thread (as_current is mujoco >= 3.4)
                 context = mujoco.MjrContext(self._model, mujoco.mjtFontScale.mjFONTSCALE_100)
@@ -150,13 +161,28 @@ class FrameThread:
                     return
                 self._posted, self._drawing = self._drawing, self._posted
                 self._new = False
-            # Both calls release the GIL: the control thread runs meanwhile.
-            mujoco.mjr_render(self._rect, self._drawing, context)
-            mujoco.mjr_readPixels(self._back, None, self._rect, context)
+            back = self._back
+            for i, (scene, (width, height)) in enumerate(zip(self._drawing.scenes, self._drawing.sizes, strict=True)):
+                width, height = min(width, self._max[0]), min(height, self._max[1])
+                if back[i].shape[:2] != (height, width):
+                    back[i] = np.zeros((height, width, 3), np.uint8)
+                if width and height:
+                    rect = mujoco.MjrRect(0, 0, width, height)
+                    # Both calls release the GIL: the control thread runs meanwhile.
+                    mujoco.mjr_render(rect, scene, context)
+                    mujoco.mjr_readPixels(back[i], None, rect, context)
             with self._lock:
                 self._back, self._ready = self._ready, self._back
                 self._fresh = True
                 self.frames += 1
+
+
+class _Frame:
+    """One frame's views: a scene each and its size [px] (what `FrameThread` draws)."""
+
+    def __init__(self, scenes: list[mujoco.MjvScene]) -> None:
+        self.scenes = scenes
+        self.sizes = [(0, 0)] * len(scenes)
 
 
 def _lower_priority(nice: int) -> None:
@@ -174,60 +200,98 @@ class Viewer:
     """A window on the env: `show(hud)` once per tick reads input, hands the scene to the render thread
     and shows its newest frame with the HUD; it never waits for a frame.
 
-    Keys pressed since the last `show` are in `key_events` (pygame key codes), the window's close
-    button sets `closed`. Raises FetchError when no window can be opened (no display, no OpenGL).
+    It opens on the task's view (`fetch.tasks.Task.view`) with the wrist camera inset (the default view
+    when the main one is the wrist's); `next_camera` cycles the main one. The window resizes, and F11
+    toggles full screen; the HUD and the legend wrap to its width. Keys pressed since the last `show` are
+    in `key_events` (pygame key codes), the window's close button sets `closed`. Raises FetchError when
+    no window can be opened (no display, no OpenGL).
     """
 
-    def __init__(self, env: Any, legend: tuple[str, ...] = (), size: tuple[int, int] = (640, 480),
-                 camera: str = "front") -> None:
+    def __init__(self, env: Any, legend: tuple[str, ...] = (), size: tuple[int, int] = SIZE,
+                 camera: str | None = None, inset: str | None = "wrist") -> None:
         if not has_display() and os.environ.get("SDL_VIDEODRIVER") not in ("dummy", "offscreen"):
             raise FetchError("no display for the viewer window; use --render none (headless), or run under "
                              "a desktop session or `xvfb-run`")
         check_gl()
         self.env = env.unwrapped
-        model = self.env.model
-        self.cameras = [c for c in CAMERAS if c in camera_names(model)]
-        if camera not in self.cameras:
-            raise FetchError(f"unknown camera {camera!r}; known: {', '.join(self.cameras)}")
-        self.camera = camera
-        self._camera = mujoco.MjvCamera()
-        self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
-        self._camera.fixedcamid = model.camera(camera).id
+        self.scenery = Scenery(self.env)
+        self.cameras = self.scenery.cameras
+        self.home = camera or self.env.task.view
+        for name in (self.home, inset):
+            if name is not None and name not in self.cameras:
+                raise FetchError(f"unknown camera {name!r}; known: {', '.join(self.cameras)}")
+        self.camera = self.home
+        self.inset = inset
+        self._views = [mujoco.MjvCamera(), mujoco.MjvCamera()]
+        for view in self._views:
+            view.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._option = mujoco.MjvOption()
-        self.size = size
-        # The GL context first: with MUJOCO_GL=egl, a context made after SDL opened its X11 window
-        # fails (EGL_BAD_ACCESS).
-        self._frames = FrameThread(model, size)
-        # SDL's own X11 framebuffer: by default SDL draws the window through OpenGL, which with software GL
-        # (llvmpipe under Xvfb) took 6-13 ms a flip on the control thread, against about 0.5 ms this way.
-        # SDL reads the hint when the window is made: it is set for that only.
-        with environ(PYGAME_HIDE_SUPPORT_PROMPT="1", SDL_FRAMEBUFFER_ACCELERATION="0"):
-            import pygame
-
-            self.pygame = pygame
-            try:
-                pygame.display.init()
-                pygame.font.init()
-                self.window = pygame.display.set_mode(size)
-            except pygame.error as e:
-                self._frames.close()
-                raise FetchError(f"cannot open the viewer window: {e}; use --render none") from e
-        pygame.display.set_caption(f"gym-fetch-v2: {self.env.spec.id if self.env.spec else 'collect'}")
-        self.font = pygame.font.Font(None, 22)
         self.legend = legend
         self.key_events: list[int] = []
         self.closed = False
+        self.fullscreen = False
         self.frames = 0
         """Frames shown."""
         self.ticks = 0
         self._shown: collections.deque[float] = collections.deque(maxlen=25)
+        self.layout: dict[str, tuple[int, int, int, int]] = {}
+        """Where the last frame drew each part, (left, top, width, height) [px]: "scene", "inset", "hud",
+        "legend"."""
+        with environ(PYGAME_HIDE_SUPPORT_PROMPT="1"):
+            import pygame
+        self.pygame = pygame
+        try:
+            pygame.display.init()
+            pygame.font.init()
+            # The offscreen buffer is made once, as large as the desktop: the window may go full screen.
+            desktop = pygame.display.get_desktop_sizes() or [size]
+        except pygame.error as e:
+            raise FetchError(f"cannot open the viewer window: {e}; use --render none") from e
+        self._windowed = size
+        largest = (max(w for w, _ in desktop), max(h for _, h in desktop))
+        # The GL context before the window: with MUJOCO_GL=egl, a context made after SDL opened its X11
+        # window fails (EGL_BAD_ACCESS).
+        self._frames = FrameThread(self.scenery.model, (max(largest[0], size[0]), max(largest[1], size[1])))
+        try:
+            self._window = pygame.Window(f"gym-fetch-v2: {self.env.spec.id if self.env.spec else 'collect'}",
+                                         size, resizable=True)
+            self.window.fill((0, 0, 0))
+        except pygame.error as e:
+            self._frames.close()
+            raise FetchError(f"cannot open the viewer window: {e}; use --render none") from e
+        self.font = pygame.font.Font(None, LINE)
+
+    @property
+    def window(self) -> Any:
+        """The window's surface now (a new one after a resize): what a frame is drawn on."""
+        # SDL's own X11 framebuffer: by default SDL draws the window through OpenGL, which with software GL
+        # (llvmpipe under Xvfb) took 6-13 ms a flip on the control thread, against about 0.5 ms this way.
+        # SDL reads the hint when it makes the window's framebuffer (at first, and after a resize).
+        with environ(SDL_FRAMEBUFFER_ACCELERATION="0"):
+            return self._window.get_surface()
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """[px] the window's size now."""
+        width, height = self._window.size
+        return int(width), int(height)
+
+    def toggle_fullscreen(self) -> None:
+        """Full screen, or back to the window's last size (F11)."""
+        if self.fullscreen:
+            self._window.set_windowed()
+            self._window.size = self._windowed
+        else:
+            self._windowed = self.size
+            self._window.set_fullscreen(desktop=True)
+        self.fullscreen = not self.fullscreen
 
     def yaw(self) -> float:
-        return camera_yaw(self.env.model, self.env.data, self.camera)
+        """[rad] the main camera's heading: a pad's or keyboard's "up" moves the hand away from it."""
+        return self.scenery.yaw(self.camera)
 
     def next_camera(self) -> None:
         self.camera = self.cameras[(self.cameras.index(self.camera) + 1) % len(self.cameras)]
-        self._camera.fixedcamid = self.env.model.camera(self.camera).id
 
     @property
     def fps(self) -> float:
@@ -236,17 +300,25 @@ class Viewer:
         return (len(shown) - 1) / (shown[-1] - shown[0]) if len(shown) > 1 and shown[-1] > shown[0] else 0.0
 
     def pump(self) -> None:
-        """Read the window's events: keys and close. Pad events are left for the gamepad."""
+        """Read the window's events: keys, F11, close. Pad events are left for the gamepad."""
         pg = self.pygame
         self.key_events = []
         for event in pg.event.get(eventtype=[pg.QUIT, pg.KEYDOWN, pg.WINDOWCLOSE]):
             if event.type in (pg.QUIT, pg.WINDOWCLOSE):
                 self.closed = True
             elif event.type == pg.KEYDOWN:
+                if event.key == pg.K_F11:
+                    self.toggle_fullscreen()
                 self.key_events.append(event.key)
         # Motion and text events would otherwise pile up; the gamepad reads its state directly.
         pg.event.clear(eventtype=[pg.MOUSEMOTION, pg.TEXTINPUT, pg.KEYUP, pg.JOYAXISMOTION, pg.CONTROLLERAXISMOTION,
-                                  pg.JOYBUTTONDOWN, pg.JOYBUTTONUP, pg.JOYHATMOTION])
+                                  pg.JOYBUTTONDOWN, pg.JOYBUTTONUP, pg.JOYHATMOTION, pg.VIDEORESIZE,
+                                  pg.WINDOWRESIZED, pg.WINDOWSIZECHANGED])
+
+    def _inset_size(self, size: tuple[int, int]) -> tuple[int, int]:
+        fraction, least = INSET
+        width = min(max(int(size[0] * fraction), least), size[0] // 2)
+        return width, width * 3 // 4
 
     def show(self, hud: HudState) -> None:
         """Read input; post the current scene for rendering; show the newest rendered frame, if a new one
@@ -257,51 +329,101 @@ class Viewer:
         if self._frames.error is not None:
             error = self._frames.error
             raise FetchError(f"the viewer's render thread failed: {type(error).__name__}: {error}") from error
-        env = self.env
-        mujoco.mjv_updateScene(env.model, env.data, self._option, None, self._camera,
-                               mujoco.mjtCatBit.mjCAT_ALL, self._frames.scene)
+        scenery = self.scenery
+        scenery.sync(self.env.data)
+        size = self.size
+        frame = self._frames.frame
+        inset = self.home if self.camera == self.inset else self.inset
+        for i, (camera, view_size) in enumerate(((self.camera, size), (inset, self._inset_size(size)))):
+            frame.sizes[i] = view_size if camera is not None else (0, 0)
+            if camera is None:
+                continue
+            self._views[i].fixedcamid = scenery.model.camera(camera).id
+            mujoco.mjv_updateScene(scenery.model, scenery.data, self._option, None, self._views[i],
+                                   mujoco.mjtCatBit.mjCAT_ALL, frame.scenes[i])
+            scenery.mark(frame.scenes[i])
         self._frames.post()
-        pixels = self._frames.take()
-        if pixels is None:
+        views = self._frames.take()
+        if views is None:
             return
-        surface = pg.image.frombuffer(pixels, self.size, "RGB")
-        self.window.blit(pg.transform.flip(surface, False, True), (0, 0))  # GL's rows run bottom-up
-        self._draw_hud(hud)
-        pg.display.flip()
+        main, small = views
+        window = self.window
+        if main.shape[:2] != (size[1], size[0]) or window.get_size() != size:  # a resize: the next one fits
+            return
+        window.blit(pg.transform.flip(pg.image.frombuffer(main, size, "RGB"), False, True), (0, 0))
+        self.layout = {"scene": (0, 0, *size)}
+        if small.size:
+            h, w, _ = small.shape
+            left, top = size[0] - w - MARGIN, MARGIN
+            pg.draw.rect(window, (255, 255, 255), (left - 2, top - 2, w + 4, h + 4))
+            window.blit(pg.transform.flip(pg.image.frombuffer(small, (w, h), "RGB"), False, True), (left, top))
+            self.layout["inset"] = (left, top, w, h)
+        self._draw_hud(window, hud, size)
+        self._window.flip()
         self.frames += 1
         self._shown.append(time.perf_counter())
 
-    def _draw_hud(self, hud: HudState) -> None:
-        pg = self.pygame
+    def _hud_groups(self, hud: HudState) -> list[tuple[list[str], tuple[int, int, int]]]:
+        """The HUD's lines, each a list of items to wrap, with its colour."""
+        white, green, amber = (255, 255, 255), (120, 255, 120), (255, 220, 90)
         target = f"/{hud.target}" if hud.target else ""
-        success = ("SUCCESS" if hud.success else "not yet") + \
-            (f" (held {hud.held}/{hud.hold_needed})" if hud.success else "")
-        lines = [
-            f"{hud.env_id}   attempt {hud.attempt}   saved {hud.saved}{target}",
-            f"step {hud.step}/{hud.max_steps}   {success}",
-            f"gripper {'closed' if hud.gripper_closed else 'open'}   camera {self.camera} ({self.fps:.0f} frames/s)"
-            + ("   PRECISION" if hud.precision else ""),
-        ]
+        clock = (["waiting for your first move: the clock starts then"] if hud.waiting else
+                 [f"{hud.seconds_left:.1f} s left", f"step {hud.step}/{hud.max_steps}"])
+        success = ["SUCCESS" + (f" (held {hud.held}/{hud.hold_needed})" if hud.held else "")] if hud.success else []
+        height = self.scenery.height
+        state = [f"gripper {'closed' if hud.gripper_closed else 'open'}"]
+        state += [f"{100 * height:.1f} cm over the surface below"] if height is not None else []
+        view = [f"camera {self.camera}", f"{self.fps:.0f} frames/s"] + (["PRECISION"] if hud.precision else [])
+        groups = [([hud.env_id, f"attempt {hud.attempt}", f"saved {hud.saved}{target}"], white),
+                  (clock + success, green if hud.success else amber if hud.waiting else white),
+                  (state, white), (view, white)]
+        if hud.rewound:
+            groups.append(([f"rewound {hud.rewound * hud.dt:.0f} s this attempt"], white))
         if hud.status:
-            lines.append(hud.status)
-        panel = pg.Surface((self.size[0], 22 * len(lines) + 8), pg.SRCALPHA)
-        panel.fill((0, 0, 0, 150))
-        self.window.blit(panel, (0, 0))
-        for i, text in enumerate(lines):
-            colour = (120, 255, 120) if (i == 1 and hud.success) else (255, 220, 90) if text == hud.status \
-                else (255, 255, 255)
-            self.window.blit(self.font.render(text, True, colour), (8, 6 + 22 * i))
+            groups.append(([hud.status], amber))
+        return groups
+
+    def _draw_hud(self, window: Any, hud: HudState, size: tuple[int, int]) -> None:
+        inset = self.layout.get("inset")
+        room = (inset[0] if inset else size[0]) - 3 * MARGIN  # the HUD stays left of the inset
+        lines = [(line, colour) for items, colour in self._hud_groups(hud) for line in self.wrap(items, room)]
+        self.layout["hud"] = self._panel(window, [line for line, _ in lines], [c for _, c in lines], 0, size)
         if self.legend:
-            legend = pg.Surface((self.size[0], 22 * len(self.legend) + 8), pg.SRCALPHA)
-            legend.fill((0, 0, 0, 150))
-            top = self.size[1] - legend.get_height()
-            self.window.blit(legend, (0, top))
-            for i, text in enumerate(self.legend):
-                self.window.blit(self.font.render(text, True, (220, 220, 220)), (8, top + 6 + 22 * i))
+            legend = self.wrap(self.legend, size[0] - 2 * MARGIN)
+            top = size[1] - LINE * len(legend) - MARGIN
+            self.layout["legend"] = self._panel(window, legend, [(220, 220, 220)] * len(legend), top, size)
+
+    def _panel(self, window: Any, lines: list[str], colours: list[tuple[int, int, int]], top: int,
+               size: tuple[int, int]) -> tuple[int, int, int, int]:
+        """Draw `lines` on a translucent panel at `top`, as wide as its longest line; returns its rectangle."""
+        pg = self.pygame
+        width = min(max((self.font.size(line)[0] for line in lines), default=0) + 2 * MARGIN, size[0])
+        height = LINE * len(lines) + MARGIN
+        panel = pg.Surface((width, height), pg.SRCALPHA)
+        panel.fill((0, 0, 0, 150))
+        window.blit(panel, (0, top))
+        for i, (line, colour) in enumerate(zip(lines, colours, strict=True)):
+            window.blit(self.font.render(line, True, colour), (MARGIN, top + MARGIN // 2 + LINE * i))
+        return 0, top, width, height
+
+    def wrap(self, items: tuple[str, ...] | list[str], width: int) -> list[str]:
+        """`items` joined into lines no wider than `width` [px] in the HUD's font (an item wider than that
+        alone is cut to fit, with "...")."""
+        lines: list[str] = []
+        for item in items:
+            while self.font.size(item)[0] > width and len(item) > 4:
+                item = item[:-4] + "..."
+            joined = f"{lines[-1]}   {item}" if lines else item
+            if lines and self.font.size(joined)[0] <= width:
+                lines[-1] = joined
+            else:
+                lines.append(item)
+        return lines
 
     def screenshot(self, path: str) -> None:
         self.pygame.image.save(self.window, path)
 
     def close(self) -> None:
         self._frames.close()
+        self._window.destroy()
         self.pygame.display.quit()
