@@ -122,6 +122,7 @@ class Scenery:
         self._robot = np.array([self.model.body(b).name.startswith("robot0:") for b in range(self.model.nbody)])
         self._groups = np.array([0 if g in HIDDEN_GROUPS else 1 for g in range(mujoco.mjNGROUP)], np.uint8)
         self._geom_id = np.zeros(1, np.int32)
+        self._place(base.data)
         self.fingertips = self._fingertip_drop()
         """[m] how far the fingertips reach below the grip site."""
         self.below: np.ndarray | None = None
@@ -129,10 +130,9 @@ class Scenery:
         self.height: float | None = None
 
     def _fingertip_drop(self) -> float:
-        """[m] how far the fingertips reach below the grip site (the hand points down throughout): the
-        lowest corner of the finger geoms' bounding boxes."""
+        """[m] how far the fingertips reach below the grip site, from where they are now (the hand points down
+        throughout): the lowest corner of the finger geoms' bounding boxes."""
         m, d = self.model, self.data
-        mujoco.mj_forward(m, d)
         lowest = d.site_xpos[self._grip][2]
         signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
         for g in range(m.ngeom):
@@ -144,13 +144,16 @@ class Scenery:
 
     def sync(self, data: mujoco.MjData) -> None:
         """Put everything where it is in the env's `data`, and find the surface below the hand."""
+        self._place(data)
+        self._drop()
+
+    def _place(self, data: mujoco.MjData) -> None:
         d = self.data
         d.qpos[:] = data.qpos
         d.mocap_pos[:] = data.mocap_pos
         d.mocap_quat[:] = data.mocap_quat
         mujoco.mj_kinematics(self.model, d)
         mujoco.mj_camlight(self.model, d)
-        self._drop()
 
     def _drop(self) -> None:
         """Cast a ray straight down from the grip site, through the robot's own geoms, to the first other

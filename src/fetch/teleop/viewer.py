@@ -43,9 +43,6 @@ SIZE = (640, 480)
 """[px] the window's size when it opens."""
 INSET = (0.28, 160)
 """The wrist camera's inset: this fraction of the window's width, and at least this many pixels (4:3)."""
-SHADOWS = (True, False)
-"""Shadows in the main view and in the inset: a shadow pass costs a software renderer about as much as
-the main view itself, and the inset has the drop line and spot."""
 MARGIN, LINE = 8, 22
 """[px] the HUD's and legend's margin and line height."""
 
@@ -54,17 +51,19 @@ class FrameThread:
     """Renders views of scenes into pixels on a thread of its own, which owns the GL context.
 
     A frame is `VIEWS` views (the main camera, the inset), each a scene and a size [px, (0, 0): not
-    drawn]. The caller fills `frame` (`mjv_updateScene` into its scenes, on its own thread, from its own
-    MjData, and the sizes), `post()`s it and gets a free one in its place; the thread draws the newest
-    posted frame whenever it is idle, and `take()` returns the newest finished pixels not yet taken.
+    drawn]; `shadows` says for each view whether the key light casts them. The caller fills `frame`
+    (`mjv_updateScene` into its scenes, on its own thread, from its own MjData, and the sizes),
+    `post()`s it and gets a free one in its place; the thread draws the newest posted frame whenever it
+    is idle, and `take()` returns the newest finished pixels not yet taken.
     Three frames and three sets of pixel buffers rotate under one lock, held only for the swaps, so
     neither side ever waits for the other's work or writes what the other reads. A failure in the
     thread is kept in `error` for the caller to raise.
     """
 
-    VIEWS = len(SHADOWS)
+    VIEWS = 2
 
-    def __init__(self, model: mujoco.MjModel, max_size: tuple[int, int]) -> None:
+    def __init__(self, model: mujoco.MjModel, max_size: tuple[int, int], shadows: tuple[bool, ...] = (True, False)
+                 ) -> None:
         width, height = max_size
         # The offscreen buffer must hold the largest view; this model is the window's own copy.
         model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
@@ -72,6 +71,7 @@ class FrameThread:
         self._model = model
         self._max = max_size
         self._context = context_class()
+        self._shadows = shadows
         self.frame, self._posted, self._drawing = (self._new_frame() for _ in range(3))
         self._back, self._ready, self._front = ([np.zeros((0, 0, 3), np.uint8)] * self.VIEWS for _ in range(3))
         self._lock = threading.Condition()
@@ -93,7 +93,7 @@ class FrameThread:
                 "display's OpenGL (glxinfo)") from self.error
 
     def _new_frame(self) -> _Frame:
-        return _Frame([self._new_scene(shadows) for shadows in SHADOWS])
+        return _Frame([self._new_scene(shadows) for shadows in self._shadows])
 
     def _new_scene(self, shadows: bool) -> mujoco.MjvScene:
         scene = mujoco.MjvScene(self._model, maxgeom=MAX_GEOMS)
@@ -208,7 +208,7 @@ class Viewer:
     """
 
     def __init__(self, env: Any, legend: tuple[str, ...] = (), size: tuple[int, int] = SIZE,
-                 camera: str | None = None, inset: str | None = "wrist") -> None:
+                 camera: str | None = None, inset: str | None = "wrist", shadows: bool = True) -> None:
         if not has_display() and os.environ.get("SDL_VIDEODRIVER") not in ("dummy", "offscreen"):
             raise FetchError("no display for the viewer window; use --render none (headless), or run under "
                              "a desktop session or `xvfb-run`")
@@ -251,7 +251,10 @@ class Viewer:
         largest = (max(w for w, _ in desktop), max(h for _, h in desktop))
         # The GL context before the window: with MUJOCO_GL=egl, a context made after SDL opened its X11
         # window fails (EGL_BAD_ACCESS).
-        self._frames = FrameThread(self.scenery.model, (max(largest[0], size[0]), max(largest[1], size[1])))
+        # Shadows in the main view only: a shadow pass costs a software renderer about as much as the view
+        # itself, and the inset has the drop line and spot.
+        self._frames = FrameThread(self.scenery.model, (max(largest[0], size[0]), max(largest[1], size[1])),
+                                   shadows=(shadows, False))
         try:
             self._window = pygame.Window(f"gym-fetch-v2: {self.env.spec.id if self.env.spec else 'collect'}",
                                          size, resizable=True)
