@@ -318,6 +318,27 @@ def test_a_policy_drives_a_collection_session(torch, reach: pathlib.Path, tmp_pa
         PolicyDevice(gym.make("Push-v2"), tmp_path / "run")
 
 
+def test_collect_with_takeover_runs_the_policy_until_the_pad_moves(torch, reach, tmp_path, pad) -> None:  # noqa: ANN001
+    """`gym-fetch collect --device takeover --policy RUN`: with the (virtual) pad left alone the policy
+    drives every step, and each step is labelled so."""
+    from fetch.dataset import open_dataset, validate
+
+    assert _train(reach, tmp_path / "run", "--steps", "300") == 0
+    out = tmp_path / "demos"
+    assert main(["collect", "--env", "Reach-v2", "--device", "takeover", "--policy", str(tmp_path / "run"),
+                 "--out", str(out), "--episodes", "1", "--max-steps", "30", "--keep-failures", "--render", "none",
+                 "--control-hz", "0", "--seed", "500"]) == 0
+    with open_dataset(out) as ds:
+        assert validate(ds) == []
+        (name,) = ds.demo_names
+        arrays = ds.arrays(name)
+        assert ds.attrs(name)["device"] == "takeover"
+        assert not arrays["intervention"].any()
+        np.testing.assert_array_equal(arrays["policy_actions"], arrays["actions"])
+    with pytest.raises(SystemExit):
+        main(["collect", "--env", "Reach-v2", "--device", "takeover", "--takeover-with", "expert"])
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--policy", "gru", "--chunk", "3"], "--chunk is for --policy mlp-chunk"),
     (["--demos", "50"], "has only 11 demos in mask/train"),

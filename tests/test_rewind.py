@@ -75,8 +75,8 @@ class Rewinder:
             self.pad.set_triggers(max(0.0, -float(z)), max(0.0, float(z)))
         return self.device.poll(obs)
 
-    def rewound(self, action: np.ndarray | None) -> None:
-        self.device.rewound(action)
+    def gripper_from(self, action: np.ndarray | None) -> None:
+        self.device.gripper_from(action)
         self.gripper_closed_after_rewind.append(self.device.mapper.gripper_closed)
 
     def close(self) -> None:

@@ -18,6 +18,7 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     """The collector's flags: the seed script's (same names and meaning) plus ours."""
     from fetch.dataset.formats import FORMATS
     from fetch.learn import device as _  # noqa: F401  (registers --device policy, from the layer above teleop)
+    from fetch.learn import takeover as _takeover  # noqa: F401  (registers --device takeover)
     from fetch.tasks import ENV_IDS
     from fetch.teleop.registry import DEVICE_NAMES, KINDS
     from fetch.teleop.session import RENDER_CHOICES
@@ -95,6 +96,10 @@ def run_info(args: argparse.Namespace) -> int:
         print("  devices     " + (", ".join(f"{k} {v}" for k, v in sorted(s.devices.items())) or "-"))
         print(f"  control     {s.achieved_hz:.1f} Hz achieved (mean over demos; 0: unpaced)")
         print(f"  cameras     {', '.join(s.cameras) or 'none'}")
+        demos, taken, person, steps = s.corrections
+        if demos:
+            print(f"  takeovers   {demos} demos corrected by a person: {taken} takeovers, {person} of their "
+                  f"{steps} steps ({100 * person / max(steps, 1):.0f} %) driven by the person")
         print(f"  settings    {ds.settings}")
         print("  versions    " + ", ".join(f"{k} {v}" for k, v in s.versions.items()))
         for line in describe_flags(dataset_flags(ds), s.demos):

@@ -33,7 +33,9 @@ class EpisodeBuffer:
     `begin` takes the reset's observation and state; `record` one step: the action applied, what
     the env returned, the state after it and, for a device that perturbs what it sends on purpose,
     the action it meant (`label`; the episode then gets `expert_actions`, the applied action standing
-    in for a step without one). Recording copies values in; nothing aliases the env.
+    in for a step without one), and, where a person can take over from a policy, who drove and what
+    the policy proposed (`intervention`, `policy_actions`). Recording copies values in; nothing
+    aliases the env.
     Camera images are not recorded here: the writer renders them from the states.
     """
 
@@ -43,11 +45,14 @@ class EpisodeBuffer:
         self._allocate(self._capacity)
         self.length = 0
         self.labelled = False
+        self.corrected = False
 
     def _allocate(self, capacity: int) -> None:
         n = capacity
         self.actions = np.zeros((n, 4), np.float32)
         self.labels = np.zeros((n, 4), np.float32)
+        self.interventions = np.zeros(n, np.uint8)
+        self.proposals = np.zeros((n, 4), np.float32)
         self.obs = {key: np.zeros((n + 1, size)) for key, size in self.layout.obs_sizes}
         self.rewards = np.zeros(n)
         self.terminated = np.zeros(n, bool)
@@ -57,8 +62,9 @@ class EpisodeBuffer:
         self.timestamps = np.zeros(n)
 
     def _grow(self) -> None:
-        saved = {name: getattr(self, name) for name in ("actions", "labels", "rewards", "terminated", "truncated",
-                                                         "is_success", "states", "timestamps")}
+        saved = {name: getattr(self, name) for name in ("actions", "labels", "interventions", "proposals", "rewards",
+                                                         "terminated", "truncated", "is_success", "states",
+                                                         "timestamps")}
         obs = self.obs
         self._capacity *= 2
         self._allocate(self._capacity)
@@ -70,7 +76,7 @@ class EpisodeBuffer:
     def begin(self, obs: Mapping[str, np.ndarray], state: np.ndarray) -> None:
         """Start a new episode from the reset's observation and `env.get_state()`."""
         self.length = 0
-        self.labelled = False
+        self.labelled = self.corrected = False
         for key, rows in self.obs.items():
             rows[0] = obs[key]
         self.states[0] = state
@@ -82,7 +88,8 @@ class EpisodeBuffer:
         return self.states[self.length + 1]
 
     def record(self, action: np.ndarray, obs: Mapping[str, np.ndarray], reward: float, terminated: bool,
-               truncated: bool, success: bool, timestamp: float, label: np.ndarray | None = None) -> None:
+               truncated: bool, success: bool, timestamp: float, label: np.ndarray | None = None,
+               intervention: bool | None = None, proposal: np.ndarray | None = None) -> None:
         """Append one step; the state after it must already be in `state_row()`."""
         t = self.length
         if t == self._capacity:
@@ -93,6 +100,10 @@ class EpisodeBuffer:
             self.labelled = True
         else:
             self.labels[t] = action
+        if intervention is not None:
+            self.interventions[t] = intervention
+            self.proposals[t] = np.clip(proposal if proposal is not None else action, -1.0, 1.0)
+            self.corrected = True
         for key, rows in self.obs.items():
             rows[t + 1] = obs[key]
         self.rewards[t] = reward
@@ -114,6 +125,9 @@ class EpisodeBuffer:
         arrays: dict[str, np.ndarray] = {"actions": self.actions[:t].copy()}
         if self.labelled:
             arrays["expert_actions"] = self.labels[:t].copy()
+        if self.corrected:
+            arrays["intervention"] = self.interventions[:t].copy()
+            arrays["policy_actions"] = self.proposals[:t].copy()
         for key, rows in self.obs.items():
             arrays[f"obs/{key}"] = rows[:t].copy()
             arrays[f"next_obs/{key}"] = rows[1 : t + 1].copy()

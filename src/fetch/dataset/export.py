@@ -109,7 +109,8 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
     Each episode holds T+1 observations for T actions (`obs` then the last `next_obs`), its reset
     seed, and `infos["is_success"]` and `infos["expert_action"]` (T+1 rows: the reset's, then each
     step's; a step's expert action is what the device meant where it applied `actions[t]`, the
-    expert's clean action under DART noise: what to learn; the reset's row is NaN). Its last step is
+    expert's clean action under DART noise: what to learn; the reset's row is NaN), and for demos a
+    person corrected `infos["intervention"]` and `infos["policy_action"]` likewise. Its last step is
     marked truncated unless the env terminated it, as Minari's own collector does. The env spec
     re-creates the env the demos were recorded in; the eval env spec is that env with the task's
     registered step limit. Recorded camera images are in the observations but not in a recovered
@@ -200,8 +201,9 @@ def _write_minari(minari: Any, dataset_id: str, ds: Dataset, chosen: dict[str, d
     from minari.data_collector import EpisodeBuffer
 
     steps = 0
+    corrected = any("intervention" in ds.demo(name) for name in chosen)  # then every episode has the keys
     for name in progress(chosen, len(chosen), "export"):
-        episode = _episode(ds.arrays(name), chosen[name], env.unwrapped)
+        episode = _episode(ds.arrays(name), chosen[name], env.unwrapped, corrected)
         dataset.storage.update_episodes([EpisodeBuffer(**episode)])
         steps += len(episode["rewards"])
     dataset.storage.update_episode_metadata(
@@ -231,8 +233,10 @@ def _images_note(layout: schema.Layout) -> str:
     return f"The recovered env gives state observations only, not {keys}: {recipes}."
 
 
-def _episode(arrays: dict[str, np.ndarray], attrs: dict[str, Any], env: Any) -> dict[str, Any]:
-    """One demo as the fields of a `minari.EpisodeBuffer`."""
+def _episode(arrays: dict[str, np.ndarray], attrs: dict[str, Any], env: Any, corrected: bool = False
+             ) -> dict[str, Any]:
+    """One demo as the fields of a `minari.EpisodeBuffer`; with `corrected`, the takeover labels in its infos
+    (a demo recorded without takeover: intervention 0, the policy's action its own)."""
     keys = [path[len("obs/"):] for path in arrays if path.startswith("obs/")]
     observations = {k: np.concatenate([arrays[f"obs/{k}"], arrays[f"next_obs/{k}"][-1:]]) for k in keys}
     # The reset's info was not recorded; it is a function of the start state, which was.
@@ -244,9 +248,15 @@ def _episode(arrays: dict[str, np.ndarray], attrs: dict[str, Any], env: Any) -> 
     truncations[-1] |= not terminations[-1]
     meant = schema.meant_actions(arrays)
     expert_action = np.concatenate([np.full((1, meant.shape[1]), np.nan, np.float32), meant])
+    infos = {"is_success": is_success, "expert_action": expert_action}
+    if corrected:  # some demos corrected by a person (`--device takeover`); the reset's row: 0, NaN
+        person = arrays.get("intervention", np.zeros(len(arrays["actions"]), np.uint8))
+        proposed = arrays.get("policy_actions", arrays["actions"]).astype(np.float32)
+        infos["intervention"] = np.concatenate([[0], person]).astype(np.uint8)
+        infos["policy_action"] = np.concatenate([np.full((1, 4), np.nan, np.float32), proposed])
     return {"seed": int(attrs["seed"]), "observations": observations, "actions": arrays["actions"],
             "rewards": arrays["rewards"], "terminations": terminations, "truncations": truncations,
-            "infos": {"is_success": is_success, "expert_action": expert_action}}
+            "infos": infos}
 
 
 def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *, demos: str = "successful",

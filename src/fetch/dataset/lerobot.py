@@ -92,8 +92,10 @@ def state_names(layout: dict[str, slice]) -> list[str]:
 
 
 def features(obs_layout: dict[str, slice], cameras: Sequence[str], image_size: int,
-             video_info: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """`info.json`'s features: LeRobot's keys and dtypes, the frame indices last, as LeRobot orders them."""
+             video_info: dict[str, Any], corrected: bool = False) -> dict[str, dict[str, Any]]:
+    """`info.json`'s features: LeRobot's keys and dtypes, the frame indices last, as LeRobot orders them.
+    `corrected`: some demos were corrected by a person (`--device takeover`), so `intervention` and
+    `policy_action` columns follow `next.success`."""
     def vector(names: Sequence[str]) -> dict[str, Any]:
         return {"dtype": "float32", "shape": [len(names)], "names": list(names)}
 
@@ -109,6 +111,9 @@ def features(obs_layout: dict[str, slice], cameras: Sequence[str], image_size: i
         "next.done": scalar("bool"),
         "next.success": scalar("bool"),
     }
+    if corrected:
+        out["intervention"] = scalar("bool")
+        out["policy_action"] = vector(ACTION_NAMES)
     for camera in cameras:
         out[video_key(camera)] = {"dtype": "video", "shape": [image_size, image_size, 3],
                                   "names": ["height", "width", "channels"], "info": video_info}
@@ -118,10 +123,17 @@ def features(obs_layout: dict[str, slice], cameras: Sequence[str], image_size: i
 
 
 def frame_columns(arrays: dict[str, np.ndarray], episode: int, first_index: int, task: int,
-                  fps: int) -> dict[str, np.ndarray]:
-    """One demo's rows of the data table, keyed as the features (without the videos)."""
+                  fps: int, corrected: bool = False) -> dict[str, np.ndarray]:
+    """One demo's rows of the data table, keyed as the features (without the videos). With `corrected`,
+    who drove each step (`intervention`: a person who took over from the policy; false throughout a demo
+    recorded without takeover) and what the policy proposed (`policy_action`; the action itself where no
+    policy was asked)."""
     t = len(arrays["actions"])
     frame = np.arange(t, dtype=np.int64)
+    labels = {}
+    if corrected:
+        labels = {"intervention": np.asarray(arrays.get("intervention", np.zeros(t)), bool),
+                  "policy_action": np.asarray(arrays.get("policy_actions", arrays["actions"]), np.float32)}
     return {
         "observation.state": arrays["obs/observation"].astype(np.float32),
         "observation.environment_state": arrays["obs/desired_goal"].astype(np.float32),
@@ -132,6 +144,7 @@ def frame_columns(arrays: dict[str, np.ndarray], episode: int, first_index: int,
         "next.reward": arrays["rewards"].astype(np.float32),
         "next.done": arrays["dones"].astype(bool),
         "next.success": arrays["is_success"].astype(bool),
+        **labels,
         "timestamp": (frame / fps).astype(np.float32),
         "frame_index": frame,
         "episode_index": np.full(t, episode, np.int64),

@@ -149,6 +149,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
     env.close()
     task = lerobot.INSTRUCTIONS[ds.env_id]
     names = list(chosen)
+    corrected = any("intervention" in ds.demo(name) for name in names)
     videos = {camera: _Video(av, root, video_key(camera), fps, size) for camera in cameras}
     data_files = _RollingFiles(root, lerobot.DATA_PATH, lerobot.DATA_FILE_MB)
     writer: Any = None
@@ -161,7 +162,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
         rendered = _rendered(ds, names, cameras, size, workers)
         for episode, (name, images) in enumerate(progress(zip(names, rendered, strict=True), len(names),
                                                           "export lerobot")):
-            columns = lerobot.frame_columns(ds.arrays(name), episode, frames, 0, fps)
+            columns = lerobot.frame_columns(ds.arrays(name), episode, frames, 0, fps, corrected)
             length = len(columns["index"])
             if writer is not None and data_files.full():
                 writer.close()
@@ -203,7 +204,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
             video.close()
     stats = {key: lerobot.feature_stats(np.concatenate(parts)) for key, parts in columns_all.items()}
     stats.update({video_key(c): lerobot.image_stats(pixels[c], sampled) for c in cameras})
-    info = lerobot.features(obs_layout, cameras, size, _video_info(av, root, cameras, fps))
+    info = lerobot.features(obs_layout, cameras, size, _video_info(av, root, cameras, fps), corrected)
     _write_meta(pa, pq, root, episodes, task, stats, info, frames, fps, cameras)
     _write_card(root, repo_id, ds, len(episodes), frames, task)
     return Written(root, len(episodes), frames, sum(v.opened for v in videos.values()))

@@ -48,7 +48,8 @@ def seed_arrays(demo: Demo, metadata: dict[str, Any]) -> dict[str, Any]:
     """The seed's npz keys: `action`, `reward`, `terminated`, `truncated`, `obs__<key>` (T+1 rows,
     the reset's observation first), `metadata_json`, `info_json`; plus `states` (T+1 rows) and
     `expert_action`: what the device meant at each step, the expert's clean action where `action` is
-    its DART-perturbed one (what to learn; `action` replays)."""
+    its DART-perturbed one (what to learn; `action` replays); a demo a person corrected adds
+    `intervention` (1 where the person drove) and `policy_action` (what the policy proposed), T rows."""
     a = demo.arrays
     packed: dict[str, Any] = {
         "metadata_json": json.dumps(metadata, ensure_ascii=False),
@@ -61,6 +62,9 @@ def seed_arrays(demo: Demo, metadata: dict[str, Any]) -> dict[str, Any]:
         "truncated": a["truncated"],
         "states": a["states"],
     }
+    if "intervention" in a:  # corrected by a person (`--device takeover`)
+        packed["intervention"] = a["intervention"]
+        packed["policy_action"] = a["policy_actions"]
     for path in a:
         if path.startswith("obs/"):
             key = path[len("obs/"):]

@@ -262,6 +262,15 @@ class Summary:
     masks: dict[str, int]
     versions: dict[str, str]
     cameras: tuple[str, ...]
+    corrections: tuple[int, int, int, int] = (0, 0, 0, 0)
+    """Demos recorded with `--device takeover`: how many, the person's takeovers in them, the steps a
+    person drove, and all their steps."""
+
+
+def takeovers(intervention: np.ndarray) -> int:
+    """How often a person took over in one demo: the runs of 1s in its `intervention`."""
+    flags = np.asarray(intervention, bool)
+    return int(flags[:1].sum() + np.count_nonzero(flags[1:] & ~flags[:-1]))
 
 
 def summarize(ds: Dataset) -> Summary:
@@ -269,6 +278,7 @@ def summarize(ds: Dataset) -> Summary:
     unreadable: tuple[type[Exception], ...] = (DatasetError, *READ_ERRORS)
     lengths, successes, lows, highs, rates = [], 0, [], [], []
     devices: dict[str, int] = {}
+    corrected = [0, 0, 0, 0]
     for name in ds.demo_names:
         try:
             group = ds.demo(name)
@@ -277,8 +287,12 @@ def summarize(ds: Dataset) -> Summary:
             actions = np.asarray(group["actions"][()], dtype=np.float64)
             rate = float(attrs.get("achieved_hz", 0.0))
             device = str(plain_value(attrs.get("device", "?")))
+            person = np.asarray(group["intervention"][()]) if "intervention" in group else None
         except unreadable:
             continue
+        if person is not None:
+            corrected = [corrected[0] + 1, corrected[1] + takeovers(person), corrected[2] + int(person.sum()),
+                         corrected[3] + len(person)]
         lengths.append(length)
         successes += success
         if actions.size and np.all(np.isfinite(actions)):
@@ -295,4 +309,5 @@ def summarize(ds: Dataset) -> Summary:
         lengths=(min(lengths, default=0), max(lengths, default=0), float(np.mean(lengths)) if lengths else 0.0),
         action_range=(min(lows, default=0.0), max(highs, default=0.0)),
         achieved_hz=float(np.mean(rates)) if rates else 0.0, devices=devices,
-        masks=masks, versions=ds.versions, cameras=ds.layout.cameras)
+        masks=masks, versions=ds.versions, cameras=ds.layout.cameras,
+        corrections=(corrected[0], corrected[1], corrected[2], corrected[3]))

@@ -83,6 +83,11 @@ OPTIONAL_FIELDS: tuple[Field, ...] = (
           "the action the device meant at step t where it sent a perturbed one on purpose (the expert under "
           "DART noise): what a policy learns, while `actions` replays the demo"),
     Field("subtasks", "uint8", (), "`gym-fetch generate` output: the index of the task's subtask step t belongs to"),
+    Field("intervention", "uint8", (),
+          "`--device takeover`: 1 where the person drove step t (having taken over from the policy), 0 where the "
+          "policy did"),
+    Field("policy_actions", "float32", (4,),
+          "`--device takeover`: the action the policy proposed at step t (where it drove, the action applied)"),
 )
 """Arrays some demos hold; checked like the others when present."""
 

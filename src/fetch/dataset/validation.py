@@ -111,6 +111,14 @@ def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dic
         meant = arrays["expert_actions"][()]
         if meant.shape != actions.shape or not np.all(np.isfinite(meant)) or (t and np.abs(meant).max() > 1.0):
             problems.append(f"{name}: expert_actions must be {actions.shape}, finite and within [-1, 1]")
+    if "intervention" in arrays and not np.isin(arrays["intervention"][()], (0, 1)).all():
+        problems.append(f"{name}: intervention holds values other than 0 (the policy drove) and 1 (a person)")
+    if "policy_actions" in arrays:
+        proposed = arrays["policy_actions"][()]
+        if not np.all(np.isfinite(proposed)) or (t and np.abs(proposed).max() > 1.0):
+            problems.append(f"{name}: policy_actions must be finite and within [-1, 1]")
+    if ("intervention" in arrays) != ("policy_actions" in arrays):
+        problems.append(f"{name}: intervention and policy_actions come together (a takeover session records both)")
     if not np.all(np.isfinite(arrays["rewards"][()])):
         problems.append(f"{name}: rewards hold NaN or infinite values")
     if not np.isin(arrays["is_success"][()], (0, 1)).all():

@@ -101,12 +101,20 @@ def _rounded(values: np.ndarray) -> list[Any]:
 
 
 def series(arrays: dict[str, np.ndarray], obs_layout: dict[str, slice]) -> dict[str, Any]:
-    """What the page plots for one demo: actions, reward and success per step, and each observation
-    part over the T+1 observations (before every step and after the last)."""
+    """What the page plots for one demo: actions, reward and success per step, each observation part over
+    the T+1 observations (before every step and after the last), and where a person took over."""
     observation = np.concatenate([arrays["obs/observation"], arrays["next_obs/observation"][-1:]])
     return {"actions": _rounded(arrays["actions"]), "reward": _rounded(arrays["rewards"])[0],
             "success": _rounded(arrays["is_success"])[0],
-            "obs": {part: _rounded(observation[:, where]) for part, where in obs_layout.items()}}
+            "obs": {part: _rounded(observation[:, where]) for part, where in obs_layout.items()},
+            "takeovers": runs(arrays["intervention"]) if "intervention" in arrays else []}
+
+
+def runs(flags: np.ndarray) -> list[list[int]]:
+    """The [start, end) steps of each run of true values: where a person drove, marked on the timeline."""
+    padded = np.concatenate([[0], np.asarray(flags, np.int8) != 0, [0]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return [[int(a), int(b)] for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, camera: str = "front",

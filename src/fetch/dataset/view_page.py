@@ -88,7 +88,8 @@ window.FetchView = (() => {
 
   // A line plot of several series over steps; labels name the series, in a row above the plot area
   // (not over the curves). `marks`: the demo's flags, drawn behind the lines: the steps of idle
-  // stretches, chatter and lost successes shaded, each close of a regrasp a thin line.
+  // stretches, chatter and lost successes shaded, each close of a regrasp a thin line, and the steps
+  // a person drove after taking over from a policy shaded blue.
   function linePlot(title, series, labels, marks) {
     const W = 280, H = 142, L = 48, R = 6, T = 28, B = 18;
     const root = svg("svg", { width: W, height: H, class: "plot", "data-title": title });
@@ -105,9 +106,10 @@ window.FetchView = (() => {
     for (const f of marks || []) {
       if (f.kind === "long") continue;  // the whole demo: said in its row
       for (const [a, b] of f.where) {
-        const close = f.kind === "regrasp";
+        const close = f.kind === "regrasp", person = f.kind === "takeover";
         root.append(svg("rect", { x: x(a), y: T, width: close ? 1.5 : Math.max(1, x(b - 1) - x(a)),
-                                  height: H - T - B, fill: close ? "#a15c00" : "#ffe0b2", class: "flagged" }));
+                                  height: H - T - B, fill: close ? "#a15c00" : person ? "#cfe3ff" : "#ffe0b2",
+                                  class: person ? "takeover" : "flagged" }));
       }
     }
     root.append(text(4, 11, title));
@@ -230,7 +232,9 @@ window.FetchView = (() => {
 
   function draw(name) {
     const data = state.cache[name];
-    const marks = summary.demos.find((x) => x.name === name).flags;
+    const flags = summary.demos.find((x) => x.name === name).flags;
+    const marks = data.takeovers && data.takeovers.length ? flags.concat([{ kind: "takeover", where: data.takeovers }])
+                                                          : flags;
     const plots = [linePlot("action", data.actions, ["x", "y", "z", "grip"], marks),
                    linePlot("reward, is_success", [data.reward, data.success], ["reward", "success"])];
     for (const [part, values] of Object.entries(data.obs)) {

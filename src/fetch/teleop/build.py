@@ -78,7 +78,9 @@ def session_from_args(args: argparse.Namespace) -> Session:
     if wants_window(config):
         from fetch.teleop.viewer import Viewer
 
-        viewer = Viewer(env, device_kind(config.device).legend)
+        kind = device_kind(config.device)
+        legend = kind.legend + (device_kind(getattr(args, kind.legend_from)).legend if kind.legend_from else ())
+        viewer = Viewer(env, legend)
     try:
         device = make_device(config, args, env, viewer)
     except BaseException:

@@ -25,7 +25,7 @@ class Command:
     `quit` ends the session; `paused` (e.g. a pad unplugged) holds the arm without stepping;
     `switch_camera` asks the viewer for the next camera; `precision` says slow mode is on (HUD);
     `rewind` takes the attempt back that many steps (the person's undo; a device that sends it has a
-    `rewound(action)` method, told the last action kept so its gripper toggle matches the fingers);
+    `gripper_from(action)` method, told the last action kept so its gripper toggle matches the fingers);
     `gripper_closed` is the state a device with a gripper toggle holds (None: read from the
     action's sign, for devices that send a[3] directly). `label` is the action the device meant when
     the one it sends is deliberately perturbed (the expert under DART noise): it is recorded beside the
@@ -44,6 +44,14 @@ class Command:
     gripper_closed: bool | None = None
     label: np.ndarray | None = None
     rewind: int = 0
+    intervention: bool | None = None
+    """For a device where a person can take the wheel from a policy: whether the person drove this step
+    (recorded as the demo's `intervention`); None for other devices."""
+    proposal: np.ndarray | None = None
+    """... and what the policy proposed for this step (recorded as `policy_actions`)."""
+    touched: bool = False
+    """A person's input this tick: motion past the dead zone, the gripper toggled, or a rewind (what
+    takes the arm over from a policy)."""
 
     @property
     def closes_gripper(self) -> bool:
@@ -92,9 +100,10 @@ class HandControls:
         self.gripper_closed = False
         self._rewind_held = 0
 
-    def rewound(self, action: np.ndarray | None) -> None:
-        """The attempt went back to just after `action` (None: to its start): the gripper toggle takes the
-        state that action had, so the fingers do not jump at the next step."""
+    def gripper_from(self, action: np.ndarray | None) -> None:
+        """The hand is where `action` left it (None: an attempt's start), after a rewind or while something
+        else drove it: the gripper toggle takes the state that action had, so the fingers do not jump at
+        the next step."""
         self.gripper_closed = action is not None and \
             abs(float(action[3]) - self.gripper_close) < abs(float(action[3]) - self.gripper_open)
 
@@ -122,7 +131,8 @@ class HandControls:
         return Command(action, discard="discard" in pressed, finish="finish" in pressed, quit="quit" in pressed,
                        switch_camera="camera" in pressed, precision=precision,
                        status="rewinding" if holding else "precision" if precision else "",
-                       gripper_closed=self.gripper_closed, rewind=rewind, paused=holding)
+                       gripper_closed=self.gripper_closed, rewind=rewind, paused=holding,
+                       touched=any(motion) or "gripper" in pressed or rewinding or bool(rewind))
 
 
 class Device(Protocol):
@@ -175,6 +185,9 @@ class DeviceKind:
     build: Callable[[DeviceContext], Device]
     aliases: tuple[str, ...] = ()
     """Other `--device` values meaning this one (the seed's "xbox" is the gamepad)."""
+    legend_from: str = ""
+    """The argument (e.g. "takeover_with") naming another device whose legend the window shows after this
+    one's: a device that a person drives through another."""
     holds_past_success: bool = False
     """Unless `--stop-on-success` is given, an attempt runs on to the task's horizon (the default
     `--max-steps`) instead of ending once success has held: a demo that shows holding the goal

@@ -57,8 +57,8 @@ class KeyboardDevice:
     def reset(self) -> None:
         self.controls.reset()
 
-    def rewound(self, action: np.ndarray | None) -> None:
-        self.controls.rewound(action)
+    def gripper_from(self, action: np.ndarray | None) -> None:
+        self.controls.gripper_from(action)
 
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
         pg = self.pygame

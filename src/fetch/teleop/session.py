@@ -349,7 +349,8 @@ class Session:
             self.ticks.append((deadline, polled, time.perf_counter()))
             self.base.get_state(out=buf.state_row())
             ok = info["is_success"] >= 1.0
-            buf.record(action, obs, float(reward), terminated, truncated, ok, now, command.label)
+            buf.record(action, obs, float(reward), terminated, truncated, ok, now, command.label,
+                       command.intervention, command.proposal)
             held = held + 1 if ok else 0
             success = success or held >= cfg.success_hold_steps
             if success and cfg.stop_on_success:
@@ -388,9 +389,9 @@ class Session:
         self.base.set_state(buf.rewind(steps))
         last = buf.actions[buf.length - 1] if buf.length else None
         self._gripper_closed = bool(last is not None and last[3] < 0)
-        rewound = getattr(self.device, "rewound", None)
-        if rewound is not None:
-            rewound(last)
+        gripper_from = getattr(self.device, "gripper_from", None)
+        if gripper_from is not None:
+            gripper_from(last)
         return cast(tuple[dict[str, np.ndarray], dict[str, Any]], self.base.observe())
 
     def _show(self, number: int, step: int, info: dict[str, Any], held: int, command: Command,

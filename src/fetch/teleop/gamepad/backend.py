@@ -216,8 +216,8 @@ class GamepadDevice:
     def reset(self) -> None:
         self.mapper.reset()
 
-    def rewound(self, action: np.ndarray | None) -> None:
-        self.mapper.controls.rewound(action)
+    def gripper_from(self, action: np.ndarray | None) -> None:
+        self.mapper.controls.gripper_from(action)
 
     def poll(self, obs: Mapping[str, np.ndarray] | None = None) -> Command:
         if not self.pad.update():
