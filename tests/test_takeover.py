@@ -161,3 +161,19 @@ def test_the_labels_go_into_every_export(corrected: tuple[pathlib.Path, Takeover
     np.testing.assert_allclose(np.array(table.column("policy_action").to_pylist()), arrays["policy_actions"])
     info = json.loads((tmp_path / "lerobot" / "meta" / "info.json").read_text())
     assert info["features"]["intervention"]["dtype"] == "bool"
+
+
+def test_the_view_marks_where_the_person_drove(corrected: tuple[pathlib.Path, TakeoverDevice, list[Command]],
+                                               tmp_path: pathlib.Path) -> None:
+    import cdp
+
+    from fetch.cli import main
+
+    out, _, _ = corrected
+    assert main(["view", str(out), "--out", str(tmp_path / "page"), "--size", "32"]) == 0
+    with cdp.open_page(tmp_path / "page" / "index.html", tmp_path) as browser:
+        assert browser.wait_for("window.FetchView && FetchView.state.plotted") == "demo_0"
+        # two takeovers: two blue stretches on the action plot's timeline, none elsewhere
+        assert browser.evaluate("document.querySelectorAll('#plots svg[data-title=action] rect.takeover').length") == 2
+        assert browser.evaluate("document.querySelectorAll('#plots rect.takeover').length") == 2
+        assert browser.evaluate("FetchView.state.errors") == [] and browser.errors() == []
