@@ -339,6 +339,68 @@ def test_collect_with_takeover_runs_the_policy_until_the_pad_moves(torch, reach,
         main(["collect", "--env", "Reach-v2", "--device", "takeover", "--takeover-with", "expert"])
 
 
+class _Corrector:
+    """A person who takes over on every other stretch of 6 ticks and steers to the goal (no pad: the
+    takeover device reads its commands as it would a pad's)."""
+
+    name = "gamepad"
+
+    def __init__(self) -> None:
+        self.tick = 0
+
+    def reset(self) -> None:
+        self.tick = 0
+
+    def poll(self, obs):  # noqa: ANN001, ANN201
+        from fetch.teleop.devices import Command
+
+        self.tick += 1
+        if (self.tick // 6) % 2 == 0:
+            return Command(np.zeros(4, np.float32))
+        move = np.clip((obs["desired_goal"] - obs["achieved_goal"]) / 0.05, -1, 1)
+        return Command(np.r_[move, 1.0].astype(np.float32), touched=True)
+
+    def close(self) -> None:
+        pass
+
+
+def test_train_from_a_run_goes_on_with_the_corrections(torch, reach, tmp_path) -> None:  # noqa: ANN001
+    """`train DEMOS CORRECTED --from RUN`: the run's policy, weights and normalisation go on learning from the
+    demos plus the stretches a person drove (each `--correction-weight` times); stopped, it resumes."""
+    from fetch.dataset import open_dataset
+    from fetch.learn.data import load_many
+    from fetch.learn.device import PolicyDevice
+    from fetch.learn.takeover import TakeoverDevice
+    from fetch.teleop.session import CollectConfig, Session
+
+    assert _train(reach, tmp_path / "run", "--steps", "200") == 0
+    corrected = tmp_path / "corrected"
+    env = gym.make("Reach-v2", max_episode_steps=40)
+    device = TakeoverDevice(PolicyDevice(env, tmp_path / "run"), _Corrector())
+    config = CollectConfig(env_id="Reach-v2", out=str(corrected), episodes=3, max_steps=40, device="takeover",
+                           render="none", control_hz=0, keep_failures=True, seed=700)
+    Session(config, device, env=env, log=lambda _: None).run()
+    with open_dataset(corrected) as ds:
+        person = sum(int(ds.arrays(n)["intervention"].sum()) for n in ds.demo_names)
+    assert person > 0
+    demos = load_many([reach, corrected], correction_weight=3)
+    stretches = [e for e in demos.train if e.corrected]
+    assert stretches and len(stretches) % 3 == 0 and sum(len(e.actions) for e in stretches) <= 3 * person
+    assert sum(not e.corrected for e in demos.train) == 11 and demos.seeds >= {700, 701, 702}
+
+    argv = ["train", str(reach), str(corrected), "--from", str(tmp_path / "run"), "--out", str(tmp_path / "again"),
+            "--correction-weight", "3", "--steps", "60", "--checkpoint-every", "30", "--batch-size", "64"]
+    assert main(argv) == 0
+    state = _checkpoint(torch, tmp_path / "again")
+    base = _checkpoint(torch, tmp_path / "run")
+    assert state["source"]["from"]["step"] == 200 and state["policy"] == base["policy"]
+    assert torch.equal(state["norm"]["mean"], base["norm"]["mean"]), "the run's input normalisation goes on"
+    assert any(name.endswith("(takeover 1)") for name in state["source"]["train_demos"])
+    assert main(argv) == 0  # finished: run again, it is left as it is
+    assert int(_checkpoint(torch, tmp_path / "again")["step"]) == 60
+    assert main([*argv[:-6], "--policy", "gru"]) == 2  # --from keeps the run's policy
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--policy", "gru", "--chunk", "3"], "--chunk is for --policy mlp-chunk"),
     (["--demos", "50"], "has only 11 demos in mask/train"),

@@ -166,7 +166,6 @@ def test_the_labels_go_into_every_export(corrected: tuple[pathlib.Path, Takeover
 def test_the_view_marks_where_the_person_drove(corrected: tuple[pathlib.Path, TakeoverDevice, list[Command]],
                                                tmp_path: pathlib.Path) -> None:
     import cdp
-
     from fetch.cli import main
 
     out, _, _ = corrected

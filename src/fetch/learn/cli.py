@@ -33,8 +33,24 @@ def _blind_tasks() -> list[str]:
     return sorted(task for task, settings in MEASURED_SETTINGS.items() if settings.get("velocities") is False)
 
 
+FROM_STEPS_DIVISOR = 4
+FROM_STEPS = "quarter"
+"""`train --from RUN` goes on for a quarter of RUN's steps unless --steps says otherwise."""
+CORRECTION_WEIGHT = 4
+"""The default `--correction-weight`."""
+
+
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("dataset", help="a dataset directory (from gym-fetch collect) or file (e.g. from merge)")
+    p.add_argument("dataset", nargs="+",
+                   help="a dataset directory (from gym-fetch collect) or file (e.g. from merge); several of one task "
+                        "are learnt from together (the demos and the attempts a person corrected)")
+    p.add_argument("--from", dest="start_from", default=None, metavar="RUN",
+                   help="go on training RUN's policy (its settings, weights and input normalisation) on these "
+                        "datasets, e.g. the original demos plus the corrected attempts of `collect --device takeover` "
+                        f"(default steps: a {FROM_STEPS} of RUN's)")
+    p.add_argument("--correction-weight", type=int, default=CORRECTION_WEIGHT,
+                   help="how many times each stretch a person drove in a corrected attempt is repeated among the "
+                        f"training demos (default {CORRECTION_WEIGHT})")
     p.add_argument("--out", required=True, metavar="RUN",
                    help="the run directory: its checkpoint.pt is written atomically every --checkpoint-every steps; "
                         "run the same command again to resume a run that was stopped")
@@ -92,22 +108,33 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
 def run_train(args: argparse.Namespace) -> int:
     require_torch()
     from fetch.dataset.habits import layout_of
-    from fetch.learn.data import load_demos, velocity_columns
+    from fetch.learn.data import load_many, velocity_columns
     from fetch.learn.policies import KIND_DEFAULTS
-    from fetch.learn.train import TrainConfig, train
+    from fetch.learn.train import TrainConfig, base_settings, train
 
-    with said_if_slow(f"reading {args.dataset} ..."):
-        demos = load_demos(args.dataset)
-    chosen = auto_settings(demos.env_id) if args.policy == "auto" else {"kind": args.policy}
-    kind = chosen["kind"]
-    policy = {**KIND_DEFAULTS.get(kind, {}), **chosen}
-    for name in ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets"):
-        if getattr(args, name) is not None:
-            policy[name] = getattr(args, name)
-    velocities = policy.pop("velocities", True)
-    velocities = velocities if args.velocities is None else args.velocities
-    if not velocities:
-        policy["blind"] = velocity_columns(layout_of(demos.env_id) or {})
+    with said_if_slow(f"reading {', '.join(args.dataset)} ..."):
+        demos = load_many(args.dataset, args.correction_weight)
+    if args.start_from is not None:
+        policy, before = base_settings(args.start_from)
+        given = [f"--{n.replace('_', '-')}" for n in ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets",
+                                                     "velocities") if getattr(args, n) is not None]
+        if given or args.policy != "auto":
+            raise FetchError(f"--from {args.start_from} goes on with that run's policy; leave out "
+                             f"{', '.join(given) or '--policy'}")
+        kind = policy["kind"]
+        args.mirror = before.get("mirror", False) if args.mirror is None else args.mirror
+        args.steps = args.steps if args.steps is not None else max(1, int(before["steps"]) // FROM_STEPS_DIVISOR)
+    else:
+        chosen = auto_settings(demos.env_id) if args.policy == "auto" else {"kind": args.policy}
+        kind = chosen["kind"]
+        policy = {**KIND_DEFAULTS.get(kind, {}), **chosen}
+        for name in ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets"):
+            if getattr(args, name) is not None:
+                policy[name] = getattr(args, name)
+        velocities = policy.pop("velocities", True)
+        velocities = velocities if args.velocities is None else args.velocities
+        if not velocities:
+            policy["blind"] = velocity_columns(layout_of(demos.env_id) or {})
     if kind == "gru" and args.chunk is not None:
         raise FetchError(f"--chunk is for --policy mlp-chunk; {args.policy} trains gru here, which predicts one "
                          "action per step")
@@ -125,7 +152,7 @@ def run_train(args: argparse.Namespace) -> int:
     config = TrainConfig(steps=steps, batch_size=args.batch_size, lr=args.lr, obs_noise=args.obs_noise,
                          seed=args.seed, demos=args.demos, mirror=mirror, checkpoint_every=args.checkpoint_every,
                          threads=args.threads)
-    result = train(demos, args.out, policy, config)
+    result = train(demos, args.out, policy, config, start_from=args.start_from)
     valid = "none (no valid split)" if result.valid_loss is None else f"{result.valid_loss:.4f}"
     resumed = f", resumed at step {result.resumed_from}" if result.resumed_from else ""
     members = f" ({policy['members']} members)" if policy.get("members", 1) > 1 else ""

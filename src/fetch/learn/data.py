@@ -79,7 +79,10 @@ class Episode:
     achieved: np.ndarray
     """(T, 3) the achieved goal of each step (for `policy_inputs` with goal offsets)."""
     first_success: int | None = None
-    """[steps] how long the demo took to succeed, as recorded (None: it never did)."""
+    """[steps] how long the demo took to succeed, as recorded (None: it never did, or this is a stretch a
+    person drove)."""
+    corrected: bool = False
+    """A stretch of an attempt that a person took over from a policy (`--device takeover`)."""
 
 
 def policy_inputs(episode: Episode, goal_offsets: bool, blind: Sequence[int] = ()) -> np.ndarray:
@@ -100,6 +103,8 @@ class Demos:
     valid: tuple[Episode, ...]
     seeds: frozenset[int]
     """Every reset seed in the dataset (all demos, kept failures too): evaluation avoids them."""
+    origins: tuple[str, ...] = ()
+    """Every dataset file the demos came from, where they came from several (`load_many`)."""
 
     @property
     def horizon(self) -> int:
@@ -118,7 +123,8 @@ def needed_horizon(env_id: str, episodes: Sequence[Episode]) -> int:
 
 def load_demos(path: str | os.PathLike[str]) -> Demos:
     """The successful demos of a dataset (file or collector directory): `mask/train` to learn from and
-    `mask/valid` to validate on."""
+    `mask/valid` to validate on; of attempts a person corrected (`--device takeover`), the stretches the
+    person drove, failed attempts' too."""
     from fetch.dataset import open_dataset
     from fetch.dataset.validation import require_valid
 
@@ -129,13 +135,34 @@ def load_demos(path: str | os.PathLike[str]) -> Demos:
             if split not in masks:
                 raise DatasetError(f"{ds.path} has no mask/{split}; make one with `gym-fetch split {path}`")
         seeds = frozenset(int(ds.attrs(n)["seed"]) for n in ds.demo_names)
-        train = _episodes(ds, masks["train"])
+        # A failed attempt that a person corrected still holds what they did where they drove.
+        corrected = [n for n in masks.get("failed", []) if "intervention" in ds.demo(n)]
+        train = _episodes(ds, masks["train"]) + _episodes(ds, corrected)
         valid = _episodes(ds, masks["valid"])
         env_id, env_kwargs = ds.env_id, dict(ds.env_kwargs)
         where = ds.path.resolve()
     if not train:
         raise DatasetError(f"{where}: mask/train lists no demo with a step; a policy needs at least one")
     return Demos(str(where), env_id, env_kwargs, train, valid, seeds)
+
+
+def load_many(paths: Sequence[str | os.PathLike[str]], correction_weight: int = 1) -> Demos:
+    """The demos of several datasets of one task, as one (`gym-fetch train D1 D2 ...`): the original demos
+    and the attempts a person corrected (`--device takeover`). Each training stretch a person drove is
+    repeated `correction_weight` times (corrections are few beside the demos they correct)."""
+    loaded = [load_demos(p) for p in paths]
+    first = loaded[0]
+    for other in loaded[1:]:
+        if (other.env_id, other.env_kwargs) != (first.env_id, first.env_kwargs):
+            raise DatasetError(f"{other.origin} holds {other.env_id} {other.env_kwargs} demos and {first.origin} "
+                               f"{first.env_id} {first.env_kwargs}: a policy learns one task; train on datasets "
+                               "of the same task and settings")
+    if correction_weight < 1:
+        raise DatasetError(f"--correction-weight must be a whole number >= 1, got {correction_weight}")
+    train = tuple(e for d in loaded for e in d.train for _ in range(correction_weight if e.corrected else 1))
+    return Demos(first.origin if len(loaded) == 1 else " + ".join(d.origin for d in loaded), first.env_id,
+                 first.env_kwargs, train, tuple(e for d in loaded for e in d.valid),
+                 frozenset().union(*(d.seeds for d in loaded)), tuple(d.origin for d in loaded))
 
 
 def with_reflections(demos: Demos) -> Demos:
@@ -157,7 +184,7 @@ def with_reflections(demos: Demos) -> Demos:
     def reflect(e: Episode) -> Episode:
         obs = np.concatenate([reflection.observation(e.obs[:, :size]), reflection.goal(e.obs[:, size:])], axis=1)
         return Episode(f"{e.name} (mirrored)", e.seed, obs.astype(np.float32), e.actions * sign,
-                       reflection.goal(e.achieved).astype(np.float32), e.first_success)
+                       reflection.goal(e.achieved).astype(np.float32), e.first_success, e.corrected)
 
     return dataclasses.replace(demos, train=demos.train + tuple(reflect(e) for e in demos.train))
 
@@ -191,10 +218,38 @@ def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
         keep = learnt_steps(arrays, layout)
         obs = flat_obs({k: arrays[f"obs/{k}"] for k in OBS_KEYS})
         # A demo recorded under DART noise learns the expert's clean action, not the perturbed one it executed.
-        out.append(Episode(name, int(attrs["seed"]), obs[keep], meant_actions(arrays)[keep],
-                           np.asarray(arrays["obs/achieved_goal"], np.float32)[keep],
+        actions = meant_actions(arrays)
+        achieved = np.asarray(arrays["obs/achieved_goal"], np.float32)
+        if "intervention" in arrays:
+            # A corrected attempt teaches what the person did where they drove (HG-DAgger): each stretch
+            # is an episode of its own, so no chunk of targets runs from one correction into the next.
+            for i, (a, b) in enumerate(_runs(arrays["intervention"])):
+                b = _let_go(arrays["actions"], a, b)
+                mine = np.zeros(len(keep), bool)
+                mine[a:b] = keep[a:b]
+                if mine.any():
+                    out.append(Episode(f"{name} (takeover {i + 1})", int(attrs["seed"]), obs[mine], actions[mine],
+                                       achieved[mine], None, corrected=True))
+            continue
+        out.append(Episode(name, int(attrs["seed"]), obs[keep], actions[keep], achieved[keep],
                            first_success(arrays["is_success"])))
     return tuple(out)
+
+
+def _let_go(actions: np.ndarray, start: int, end: int) -> int:
+    """The end of a stretch a person drove without its last steps of letting go: the hand held still with
+    the gripper as it was, while the arm waited to go back to the policy (`takeover.HAND_BACK`). What a
+    person corrected is the driving; learnt, the waiting would teach the policy to stop."""
+    while end > start + 1 and not np.any(actions[end - 1, :3]) and actions[end - 1, 3] == actions[end - 2, 3]:
+        end -= 1
+    return end
+
+
+def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """The [start, end) steps of each run of non-zero values."""
+    padded = np.concatenate([[0], np.asarray(flags) != 0, [0]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 @dataclasses.dataclass(frozen=True)

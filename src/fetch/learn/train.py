@@ -101,11 +101,14 @@ def validation_loss(policy: PolicyConfig, model: torch.nn.Module, valid: Samples
 
 
 def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], policy: dict[str, Any],
-          config: TrainConfig, *, log: Any = None, show_progress: bool = True) -> TrainResult:
+          config: TrainConfig, *, log: Any = None, show_progress: bool = True,
+          start_from: str | os.PathLike[str] | None = None) -> TrainResult:
     """Train a policy of the settings `policy` (PolicyConfig fields but obs_size) on `dataset`, writing
     `out/checkpoint.pt`. `dataset` is a dataset file or directory, or demos already loaded (and, say,
     relabelled). A run that `out` already holds with the same settings is resumed from its last
-    checkpoint (one that finished is left as it is)."""
+    checkpoint (one that finished is left as it is). `start_from`: another run whose policy this one
+    goes on training (`gym-fetch train --from`): its weights and its input normalisation, so what it
+    learnt still applies; `policy` must be its settings."""
     from fetch._progress import progress
 
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
@@ -116,9 +119,12 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
         if len(demos.train) < config.demos:
             raise FetchError(f"--demos {config.demos}: {demos.origin} has only {len(demos.train)} demos in mask/train")
         demos = dataclasses.replace(demos, train=demos.train[:config.demos])
+    for origin in demos.origins:
+        ckpt.require_outside(run, pathlib.Path(origin))
     source = {"dataset": demos.origin, "env_id": demos.env_id,
               "env_kwargs": json.dumps(demos.env_kwargs, sort_keys=True),
               "train_demos": [e.name for e in demos.train]}
+    base = _base(start_from, demos.env_id, source) if start_from is not None else None
     horizon = demos.horizon
     if config.mirror:
         demos = with_reflections(demos)
@@ -129,6 +135,12 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     torch.manual_seed(config.seed)
     norm = Normalizer.fit(demos.train, policy_config.goal_offsets, policy_config.blind)
     model = build(policy_config)
+    if base is not None:
+        if ckpt._plain(base["policy"]) != ckpt._plain(policy_config.as_dict()):
+            raise FetchError(f"--from {start_from}: its policy has other settings than the ones asked for; leave "
+                             "the policy flags out and the run's are used")
+        model.load_state_dict(base["model"])
+        norm = Normalizer(base["norm"]["mean"].numpy(), base["norm"]["std"].numpy())
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     history: dict[str, list[float]] = {"step": [], "train_loss": [], "valid_loss": []}
     start = 0
@@ -205,3 +217,20 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     last_valid = history["valid_loss"][-1]
     return TrainResult(run, config.steps, history["train_loss"][-1],
                        None if math.isnan(last_valid) else last_valid, start)
+
+
+def _base(start_from: str | os.PathLike[str], env_id: str, source: dict[str, Any]) -> dict[str, Any]:
+    """The checkpoint of the run to go on from, checked to be of this task; `source` records it (a resumed
+    run must go on from the same one)."""
+    base = ckpt.read(start_from)
+    if base["source"]["env_id"] != env_id:
+        raise FetchError(f"--from {start_from} is a {base['source']['env_id']} policy; these demos are {env_id}")
+    source["from"] = {"run": str(pathlib.Path(start_from).resolve()), "step": int(base["step"])}
+    return base
+
+
+def base_settings(start_from: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The policy settings (PolicyConfig fields but obs_size) and training settings of a run to go on from."""
+    base = ckpt.read(start_from)
+    policy = {k: v for k, v in base["policy"].items() if k != "obs_size"}
+    return policy, dict(base["train"])
