@@ -111,5 +111,5 @@ def build_takeover(context: DeviceContext) -> Device:
 KIND = register(DeviceKind(
     name="takeover", human=True, add_arguments=add_takeover_arguments, build=build_takeover,
     summary="a trained policy (--policy RUN) that you correct: any input takes over, let go to hand back",
-    legend_from="takeover_with",
+    legend_from="takeover_with", waits_for_input=False,
     legend=("the policy drives: any input takes over", "let go 0.5 s: it drives again")))

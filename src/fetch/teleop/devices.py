@@ -185,6 +185,9 @@ class DeviceKind:
     build: Callable[[DeviceContext], Device]
     aliases: tuple[str, ...] = ()
     """Other `--device` values meaning this one (the seed's "xbox" is the gamepad)."""
+    waits_for_input: bool = True
+    """Where a person drives: an attempt's clock starts at their first input (False: something else drives
+    from the start, as a policy the person corrects)."""
     legend_from: str = ""
     """The argument (e.g. "takeover_with") naming another device whose legend the window shows after this
     one's: a device that a person drives through another."""
@@ -207,6 +210,10 @@ class DeviceKind:
             raise TypeError(f"{where}: summary must be a line for --help, got {self.summary!r}")
         if self.add_arguments is not None and not callable(self.add_arguments):
             raise TypeError(f"{where}: add_arguments must be a function or None, got {self.add_arguments!r}")
+        if not isinstance(self.waits_for_input, bool):
+            raise TypeError(f"{where}: waits_for_input must be True or False, got {self.waits_for_input!r}")
+        if not isinstance(self.legend_from, str):
+            raise TypeError(f"{where}: legend_from must be an argument's name or '', got {self.legend_from!r}")
         if not isinstance(self.holds_past_success, bool):
             raise TypeError(f"{where}: holds_past_success must be True or False, got {self.holds_past_success!r}")
         if not callable(self.build):

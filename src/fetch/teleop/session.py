@@ -314,7 +314,7 @@ class Session:
         ended_by = "time limit"
         # A person's clock starts at their first input: until then the arm holds still (as with a pad
         # unplugged), so reading the window or the legend costs no time of the attempt.
-        waiting = cfg.human
+        waiting = cfg.human and device_kind(cfg.device).waits_for_input
         self.clock.restart()
         command = Command(np.zeros(4, np.float32))
         first = last = 0.0
