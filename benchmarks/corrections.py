@@ -5,13 +5,15 @@
 Each stage is skipped when its output is already in --dir, so an interrupted run goes on where it stopped:
 
 1. `demos`: --demos expert demos (DART noise, as `collect --device expert` records them), seeds 0...
-2. `base`: `gym-fetch train demos` with the task's defaults; evaluated on 100 unseen seeds.
+2. `base`: `gym-fetch train demos` with the task's defaults; evaluated on --episodes unseen seeds.
 3. `corrected`: --attempts attempts (seeds 50000...) where the base policy drives and the stand-in
    corrector watches: when the policy stalls (the hand moved < 1 cm over the last `STALL` steps, the task
-   not done) or has used up the expert's usual time without success, it takes over (`Command.touched`, as
-   a pad past its dead zone), drives as the expert would (a fresh `fetch.experts` expert, its clean
-   actions) for `DRIVE` steps or until success, and lets go (the device hands back after 0.5 s).
-4. `fixed`: `gym-fetch train demos corrected --from base`, evaluated on the same 100 seeds.
+   not done), drifts (`--drift`: the hand moved against where the expert would move it, or the fingers
+   stayed far from where it would have them, for `DRIFT` steps running) or has used up the expert's
+   usual time without success, it takes over (`Command.touched`, as a pad past its dead zone), drives as
+   the expert would (a `fetch.experts` expert, its clean actions) for `DRIVE` steps or until success,
+   and lets go (the device hands back after 0.5 s).
+4. `fixed`: `gym-fetch train demos corrected --from base`, evaluated on the same seeds.
 5. `plain` (the comparison): as many more expert demos as corrected attempts (seeds 60000...), then
    `gym-fetch train demos more --from base`, evaluated likewise.
 
@@ -47,22 +49,29 @@ STALL = 12
 """[steps] a hand that moved less than 1 cm over this many steps, the task not done, has stalled."""
 DRIVE = 20
 """[steps] how long the stand-in drives once it has taken over (unless the task is done first)."""
+DRIFT = 4
+"""[steps] the hand moving against where the expert would move it, or the fingers left far from where it
+would have them (its finger servo command over `FINGERS`), this many steps running is drift."""
+FINGERS = 0.4
 CORRECTION_SEEDS, PLAIN_SEEDS = 50_000, 60_000
 
 
 class StandInCorrector:
-    """A person's side of `TakeoverDevice`: watches the policy drive, takes over when it stalls or runs out of
-    the expert's time, drives as the expert would, lets go."""
+    """A person's side of `TakeoverDevice`: watches the policy drive, takes over when it stalls, drifts (with
+    `drift`: the hand has moved against where the expert would move it for `DRIFT` steps running) or runs
+    out of the expert's time, drives as the expert would, lets go."""
 
     name = "standin"
 
-    def __init__(self, env: gym.Env, patience: int) -> None:
+    def __init__(self, env: gym.Env, patience: int, drift: bool, stall: int = STALL) -> None:
         self.expert = make_expert(env)
-        self.patience = patience
+        self.patience, self.drift, self.stall = patience, drift, stall
         self.reset()
 
     def reset(self) -> None:
-        self.tick, self.driving, self.grips, self.takeovers = 0, 0, [], 0
+        self.expert.reset()
+        self.tick, self.driving, self.grips, self.takeovers, self.against = 0, 0, [], 0, 0
+        self.wanted: np.ndarray | None = None
 
     def gripper_from(self, action: np.ndarray | None) -> None:
         pass
@@ -70,20 +79,31 @@ class StandInCorrector:
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
         self.tick += 1
         grip = np.asarray(obs["observation"])[:3].copy()
+        moved = grip - self.grips[-1] if self.grips else np.zeros(3)
         self.grips.append(grip)
         done = float(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"])) < 0.05
+        want = self.expert(obs)  # the expert follows the episode while the policy drives, as a person would
         if self.driving:
-            self.driving -= 1
-            if done:
-                self.driving = 0
-            return Command(self.expert(obs), touched=True)
-        stalled = len(self.grips) > STALL and np.linalg.norm(grip - self.grips[-STALL - 1]) < 0.01
+            self.driving = 0 if done else self.driving - 1
+            return Command(want, touched=True)
+        if self.wanted is not None and np.linalg.norm(self.wanted[:3]) > 0.5:
+            against = float(moved @ self.wanted[:3]) < 0.3 * np.linalg.norm(moved) * np.linalg.norm(self.wanted[:3])
+            self.against = self.against + 1 if against and np.linalg.norm(moved) > 0.005 else 0
+        elif abs(float(want[3])) > FINGERS:  # the fingers not where the expert would have them, and staying so
+            self.against += 1
+        else:
+            self.against = 0
+        self.wanted = want
+        stalled = len(self.grips) > self.stall and np.linalg.norm(grip - self.grips[-self.stall - 1]) < 0.01
+        drifting = self.drift and self.against >= DRIFT
         late = self.tick > self.patience and self.tick % self.patience == 1
-        if not done and (stalled or late):
-            self.expert.reset()
-            self.driving, self.grips = DRIVE - 1, []
+        if not done and (stalled or drifting or late):
+            if not drifting:
+                self.expert.reset()
+                want = self.expert(obs)
+            self.driving, self.grips, self.against = DRIVE - 1, [], 0
             self.takeovers += 1
-            return Command(self.expert(obs), touched=True)
+            return Command(want, touched=True)
         return Command(np.zeros(4, np.float32))
 
     def close(self) -> None:
@@ -98,7 +118,7 @@ def timed(what: str, times: dict[str, float], run: Any) -> Any:
 
 
 def evaluate(run: pathlib.Path, episodes: int) -> dict[str, Any]:
-    report = run / "eval.json"
+    report = run / f"eval-{episodes}.json"
     if not report.exists():
         assert gym_fetch(["eval", str(run), "--episodes", str(episodes), "--json", str(report)]) == 0
     return json.loads(report.read_text())
@@ -110,8 +130,11 @@ def main() -> None:
     parser.add_argument("--dir", required=True)
     parser.add_argument("--demos", type=int, default=100)
     parser.add_argument("--attempts", type=int, default=20)
-    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--episodes", type=int, default=500, help="evaluation episodes (default 500)")
     parser.add_argument("--weight", type=int, default=None, help="--correction-weight (default: train's)")
+    parser.add_argument("--steps", type=int, default=None, help="train --from's --steps (default: train's)")
+    parser.add_argument("--drift", action="store_true", help="the stand-in also takes over on drift")
+    parser.add_argument("--stall", type=int, default=STALL, help=f"the stand-in's STALL (default {STALL})")
     args = parser.parse_args()
     root = pathlib.Path(args.dir)
     root.mkdir(parents=True, exist_ok=True)
@@ -125,23 +148,26 @@ def main() -> None:
                               "--render", "none", "--seed", str(seed), "--out", str(out)]) == 0
 
     def train(out: pathlib.Path, *data: pathlib.Path, start: pathlib.Path | None = None) -> None:
-        if not (out / "eval.json").exists():  # train resumes a stopped run, and leaves a finished one
+        if not (out / "checkpoint.pt").exists() or not (out / "trained").exists():  # a stopped run resumes
             extra = ["--from", str(start)] if start else []
             extra += ["--correction-weight", str(args.weight)] if args.weight and start else []
+            extra += ["--steps", str(args.steps)] if args.steps and start else []
             assert gym_fetch(["train", *map(str, data), "--out", str(out), *extra]) == 0
+            (out / "trained").touch()
 
     timed("demos", times, lambda: collect_expert(root / "demos", args.demos, 0))
     timed("train base", times, lambda: train(root / "base", root / "demos"))
     base = timed("eval base", times, lambda: evaluate(root / "base", args.episodes))
 
-    corrected = root / "corrected"
+    corrected = root / ("corrected" + ("-drift" if args.drift else "") + (f"-stall{args.stall}" if args.stall != STALL
+                                                                           else ""))
     summary: dict[str, Any] = {}
 
     def correct() -> None:
         if corrected.exists():
             return
         env = gym.make(env_id, max_episode_steps=3 * horizon)
-        person = StandInCorrector(env, patience=horizon)
+        person = StandInCorrector(env, patience=horizon, drift=args.drift, stall=args.stall)
         device = TakeoverDevice(PolicyDevice(env, root / "base"), person)
         config = CollectConfig(env_id=env_id, out=str(corrected), episodes=args.attempts, max_steps=3 * horizon,
                                device="takeover", render="none", control_hz=0, keep_failures=True,
@@ -150,11 +176,14 @@ def main() -> None:
         summary.update(attempts=len(result.attempts), succeeded=sum(a.success for a in result.attempts))
 
     timed("collect corrections", times, correct)
-    timed("train fixed", times, lambda: train(root / "fixed", root / "demos", corrected, start=root / "base"))
-    fixed = timed("eval fixed", times, lambda: evaluate(root / "fixed", args.episodes))
+    variant = "".join(f"-{k}{v}" for k, v in (("w", args.weight), ("s", args.steps)) if v)
+    fixed_run = root / f"fixed{variant}{corrected.name[len('corrected'):]}"
+    plain_run = root / f"plain{'-s' + str(args.steps) if args.steps else ''}"  # the weight is for corrections
+    timed("train fixed", times, lambda: train(fixed_run, root / "demos", corrected, start=root / "base"))
+    fixed = timed("eval fixed", times, lambda: evaluate(fixed_run, args.episodes))
     timed("plain demos", times, lambda: collect_expert(root / "more", args.attempts, PLAIN_SEEDS))
-    timed("train plain", times, lambda: train(root / "plain", root / "demos", root / "more", start=root / "base"))
-    plain = timed("eval plain", times, lambda: evaluate(root / "plain", args.episodes))
+    timed("train plain", times, lambda: train(plain_run, root / "demos", root / "more", start=root / "base"))
+    plain = timed("eval plain", times, lambda: evaluate(plain_run, args.episodes))
 
     from fetch.dataset import open_dataset
     from fetch.dataset.reader import summarize
@@ -163,8 +192,9 @@ def main() -> None:
         demos, takeovers, person, steps = summarize(ds).corrections
     print(f"machine: {platform.platform()}, {os.cpu_count()} cores; python {platform.python_version()}, fetch "
           f"{fetch.__version__}, mujoco {mujoco.__version__}; {env_id}, {args.demos} expert demos, "
-          f"{args.attempts} corrected attempts ({demos} with takeovers, {takeovers} takeovers, {person} of "
-          f"{steps} steps by the stand-in), {args.episodes} evaluation episodes\n")
+          f"{args.attempts} attempts with the stand-in ready to take over ({takeovers} takeovers, {person} of "
+          f"their {steps} steps driven by it), {args.episodes} evaluation episodes\n")
+    print(f"--correction-weight {args.weight or 'default'}, --steps {args.steps or 'default'} for --from\n")
     print("| policy | success | 95 % interval |\n|---|---|---|")
     for name, result in (("base (expert demos)", base), ("base + corrections (--from base)", fixed),
                          (f"base + {args.attempts} more expert demos (--from base)", plain)):

@@ -98,8 +98,8 @@ def run_info(args: argparse.Namespace) -> int:
         print(f"  cameras     {', '.join(s.cameras) or 'none'}")
         demos, taken, person, steps = s.corrections
         if demos:
-            print(f"  takeovers   {demos} demos corrected by a person: {taken} takeovers, {person} of their "
-                  f"{steps} steps ({100 * person / max(steps, 1):.0f} %) driven by the person")
+            print(f"  takeovers   {demos} demos recorded with a person ready to take over: {taken} takeovers, "
+                  f"{person} of their {steps} steps ({100 * person / max(steps, 1):.0f} %) driven by the person")
         print(f"  settings    {ds.settings}")
         print("  versions    " + ", ".join(f"{k} {v}" for k, v in s.versions.items()))
         for line in describe_flags(dataset_flags(ds), s.demos):
