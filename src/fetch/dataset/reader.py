@@ -267,10 +267,17 @@ class Summary:
     person drove, and all their steps."""
 
 
+def runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """The [start, end) steps of each run of non-zero values: in a demo's `intervention`, the stretches a
+    person drove after taking over from a policy."""
+    padded = np.concatenate([[0], np.asarray(flags) != 0, [0]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
 def takeovers(intervention: np.ndarray) -> int:
-    """How often a person took over in one demo: the runs of 1s in its `intervention`."""
-    flags = np.asarray(intervention, bool)
-    return int(flags[:1].sum() + np.count_nonzero(flags[1:] & ~flags[:-1]))
+    """How often a person took over in one demo."""
+    return len(runs(intervention))
 
 
 def summarize(ds: Dataset) -> Summary:

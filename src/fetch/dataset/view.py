@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset.habits import FLAG_KINDS, dataset_flags
-from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, open_dataset
+from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, open_dataset, runs
 from fetch.dataset.validation import validate
 from fetch.errors import DatasetError, FetchError
 
@@ -107,14 +107,7 @@ def series(arrays: dict[str, np.ndarray], obs_layout: dict[str, slice]) -> dict[
     return {"actions": _rounded(arrays["actions"]), "reward": _rounded(arrays["rewards"])[0],
             "success": _rounded(arrays["is_success"])[0],
             "obs": {part: _rounded(observation[:, where]) for part, where in obs_layout.items()},
-            "takeovers": runs(arrays["intervention"]) if "intervention" in arrays else []}
-
-
-def runs(flags: np.ndarray) -> list[list[int]]:
-    """The [start, end) steps of each run of true values: where a person drove, marked on the timeline."""
-    padded = np.concatenate([[0], np.asarray(flags, np.int8) != 0, [0]]).astype(np.int8)
-    edges = np.flatnonzero(np.diff(padded))
-    return [[int(a), int(b)] for a, b in zip(edges[::2], edges[1::2], strict=True)]
+            "takeovers": [list(r) for r in runs(arrays["intervention"])] if "intervention" in arrays else []}
 
 
 def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, camera: str = "front",

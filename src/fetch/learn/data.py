@@ -204,7 +204,7 @@ def learnt_steps(arrays: Mapping[str, np.ndarray], layout: Mapping[str, slice] |
 
 
 def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
-    from fetch.dataset.reader import Dataset
+    from fetch.dataset.reader import Dataset, runs
     from fetch.dataset.schema import meant_actions
 
     assert isinstance(ds, Dataset)
@@ -223,7 +223,7 @@ def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
         if "intervention" in arrays:
             # A corrected attempt teaches what the person did where they drove (HG-DAgger): each stretch
             # is an episode of its own, so no chunk of targets runs from one correction into the next.
-            for i, (a, b) in enumerate(_runs(arrays["intervention"])):
+            for i, (a, b) in enumerate(runs(arrays["intervention"])):
                 b = _let_go(arrays["actions"], a, b)
                 mine = np.zeros(len(keep), bool)
                 mine[a:b] = keep[a:b]
@@ -243,13 +243,6 @@ def _let_go(actions: np.ndarray, start: int, end: int) -> int:
     while end > start + 1 and not np.any(actions[end - 1, :3]) and actions[end - 1, 3] == actions[end - 2, 3]:
         end -= 1
     return end
-
-
-def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
-    """The [start, end) steps of each run of non-zero values."""
-    padded = np.concatenate([[0], np.asarray(flags) != 0, [0]]).astype(np.int8)
-    edges = np.flatnonzero(np.diff(padded))
-    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 @dataclasses.dataclass(frozen=True)
