@@ -182,11 +182,11 @@ def test_a_render_thread_failure_is_raised_by_show(make_viewer: Callable[[], Vie
 
 
 def test_no_opengl_is_a_fetch_error(make_viewer: Callable[[], Viewer], monkeypatch: pytest.MonkeyPatch) -> None:
-    import fetch.teleop.viewer
+    import fetch.teleop.frames
 
     def no_gl(*args: object) -> None:
         raise RuntimeError("no GL here")
 
-    monkeypatch.setattr(fetch.teleop.viewer, "context_class", lambda: no_gl)
+    monkeypatch.setattr(fetch.teleop.frames, "context_class", lambda: no_gl)
     with pytest.raises(FetchError, match="viewer cannot render with MUJOCO_GL=.*no GL here"):
         make_viewer()

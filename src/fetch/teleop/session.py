@@ -22,6 +22,7 @@ from fetch.stopping import Stopped, acting_on_stop, polled, raise_if_stopped, si
 from fetch.tasks import MAX_STEPS
 from fetch.teleop.devices import Command, Device
 from fetch.teleop.registry import device_kind
+from fetch.timing import Clock
 
 RENDER_CHOICES = ("auto", "human", "rgb_array", "none")
 
@@ -193,38 +194,6 @@ class SessionSummary:
 def make_env(config: CollectConfig) -> gym.Env:
     """The env of a session: its TimeLimit is --max-steps."""
     return gym.make(config.env_id, max_episode_steps=config.max_steps, reward_type=config.reward_type)
-
-
-class Clock:
-    """Ticks on absolute deadlines (no drift); counts the ticks that started late."""
-
-    def __init__(self, hz: float) -> None:
-        self.period = 1.0 / hz if hz > 0 else 0.0
-        self.next = time.perf_counter()
-        self.late = 0
-        self._restarted = False
-
-    def restart(self) -> None:
-        """Start over: the next `wait` returns at once, and the deadlines follow from then (what ran between,
-        such as a reset and a frame shown, is the gap between attempts, not lateness)."""
-        self._restarted = True
-
-    def wait(self) -> float:
-        """Sleep until the next deadline; returns the deadline [s, perf_counter]."""
-        if not self.period:
-            return time.perf_counter()
-        now = time.perf_counter()
-        if self._restarted:
-            self._restarted = False
-            self.next = now
-        elif now - self.next > self.period:  # a whole period lost: start again rather than rush
-            self.late += 1
-            self.next = now
-        deadline = self.next
-        if now < deadline:
-            time.sleep(deadline - now)
-        self.next = deadline + self.period
-        return deadline
 
 
 class Session:
