@@ -135,7 +135,11 @@ def test_a_ctrl_c_while_the_command_loads_exits_130_without_a_traceback(tmp_path
         time.sleep(delay)
         os.killpg(proc.pid, signal.SIGINT)
         _, stderr = proc.communicate(timeout=60)
+        if "Traceback" in stderr and str(command) not in stderr:
+            # The interpreter's own start (site's .pth files, which this machine's sandbox adds one of that
+            # runs code) had not yet run the command's first line: nothing of gym-fetch could catch it.
+            continue
         assert "Traceback" not in stderr and "Error" not in stderr.replace("error: ", ""), stderr[-800:]
         codes.append(proc.returncode)
-    assert set(codes) <= {130, 2, -signal.SIGINT}, codes  # 2: it had loaded and said the dataset is missing
+    assert len(codes) >= 3 and set(codes) <= {130, 2, -signal.SIGINT}, codes  # 2: loaded, said the dataset is missing
     assert codes.count(130) >= 3, codes
