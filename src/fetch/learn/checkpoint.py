@@ -87,11 +87,12 @@ def require_same(run: pathlib.Path, previous: dict[str, Any], policy: dict[str, 
     """A resumed run must be the same run: same policy, training settings and data."""
     for what, old, new in (("policy", previous["policy"], policy), ("training", previous["train"], train),
                            ("data", previous["source"], source)):
-        if _plain(old) != _plain(new):
-            changed = sorted(k for k in set(old) | set(new) if _plain(old.get(k)) != _plain(new.get(k)))
+        if plain(old) != plain(new):
+            changed = sorted(k for k in set(old) | set(new) if plain(old.get(k)) != plain(new.get(k)))
             raise FetchError(f"{run} holds a run with other {what} settings ({', '.join(changed)} differ); "
                              "resume it with the same arguments, or train into another --out")
 
 
-def _plain(value: Any) -> Any:
+def plain(value: Any) -> Any:
+    """`value` as JSON would give it back (tuples as lists, ...): how two sets of settings are compared."""
     return json.loads(json.dumps(value, sort_keys=True))

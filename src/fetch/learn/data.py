@@ -150,6 +150,8 @@ def load_many(paths: Sequence[str | os.PathLike[str]], correction_weight: int = 
     """The demos of several datasets of one task, as one (`gym-fetch train D1 D2 ...`): the original demos
     and the attempts a person corrected (`--device takeover`). Each training stretch a person drove is
     repeated `correction_weight` times (corrections are few beside the demos they correct)."""
+    if correction_weight < 1:
+        raise DatasetError(f"--correction-weight must be a whole number >= 1, got {correction_weight}")
     loaded = [load_demos(p) for p in paths]
     first = loaded[0]
     for other in loaded[1:]:
@@ -157,8 +159,6 @@ def load_many(paths: Sequence[str | os.PathLike[str]], correction_weight: int = 
             raise DatasetError(f"{other.origin} holds {other.env_id} {other.env_kwargs} demos and {first.origin} "
                                f"{first.env_id} {first.env_kwargs}: a policy learns one task; train on datasets "
                                "of the same task and settings")
-    if correction_weight < 1:
-        raise DatasetError(f"--correction-weight must be a whole number >= 1, got {correction_weight}")
     train = tuple(e for d in loaded for e in d.train for _ in range(correction_weight if e.corrected else 1))
     return Demos(first.origin if len(loaded) == 1 else " + ".join(d.origin for d in loaded), first.env_id,
                  first.env_kwargs, train, tuple(e for d in loaded for e in d.valid),

@@ -114,13 +114,12 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
     run = pathlib.Path(out)
     demos = dataset if isinstance(dataset, Demos) else load_demos(dataset)
-    ckpt.require_outside(run, pathlib.Path(demos.origin))
+    for origin in demos.origins or (demos.origin,):
+        ckpt.require_outside(run, pathlib.Path(origin))
     if config.demos:
         if len(demos.train) < config.demos:
             raise FetchError(f"--demos {config.demos}: {demos.origin} has only {len(demos.train)} demos in mask/train")
         demos = dataclasses.replace(demos, train=demos.train[:config.demos])
-    for origin in demos.origins:
-        ckpt.require_outside(run, pathlib.Path(origin))
     source = {"dataset": demos.origin, "env_id": demos.env_id,
               "env_kwargs": json.dumps(demos.env_kwargs, sort_keys=True),
               "train_demos": [e.name for e in demos.train]}
@@ -136,7 +135,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     norm = Normalizer.fit(demos.train, policy_config.goal_offsets, policy_config.blind)
     model = build(policy_config)
     if base is not None:
-        if ckpt._plain(base["policy"]) != ckpt._plain(policy_config.as_dict()):
+        if ckpt.plain(base["policy"]) != ckpt.plain(policy_config.as_dict()):
             raise FetchError(f"--from {start_from}: its policy has other settings than the ones asked for; leave "
                              "the policy flags out and the run's are used")
         model.load_state_dict(base["model"])

@@ -77,13 +77,15 @@ def decorate(spec: mujoco.MjSpec) -> mujoco.MjSpec:
     for plane in planes:
         plane.size = [FLOOR_SIZE, FLOOR_SIZE, 0.05]
         plane.material = "window_floor"
-    overhead = [light for light in spec.lights if light.dir[2] < -0.9 and _directional(light)]
-    if not overhead:
-        overhead = [spec.worldbody.add_light(name="window_key", pos=[1.3, 0.75, 3.0], dir=[0.0, 0.0, -1.0],
-                                             diffuse=[0.5, 0.5, 0.5])]
-        _make_directional(overhead[0])
-    for light in spec.lights:
-        light.castshadow = light is overhead[0]
+    # The key light: the first directional light shining (nearly) straight down, or one added. Only it casts
+    # shadows (each casting light is a shadow pass).
+    key = next((i for i, light in enumerate(spec.lights) if light.dir[2] < -0.9 and _directional(light)), None)
+    if key is None:
+        key = len(spec.lights)
+        _make_directional(spec.worldbody.add_light(name="window_key", pos=[1.3, 0.75, 3.0], dir=[0.0, 0.0, -1.0],
+                                                   diffuse=[0.5, 0.5, 0.5]))
+    for i, light in enumerate(spec.lights):
+        light.castshadow = i == key
     spec.visual.quality.shadowsize = SHADOW_MAP
     spec.visual.quality.offsamples = SAMPLES
     for name, (pos, target) in VIEWPOINTS.items():
