@@ -190,11 +190,11 @@ def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[
             path: pathlib.Path) -> dict[str, Any]:
     """Train `gym-fetch train`'s default policy for the task, with its steps, on `kind` and evaluate it (one
     training seed)."""
-    from fetch.learn import default_steps
+    from fetch.learn.settings import task_training
     from learning_curves import auto_variant, train_and_evaluate  # the harness of the 100-expert-demo figures
 
     policy = auto_variant(env_id)
-    steps = default_steps(env_id)
+    steps = task_training(env_id).steps
     key = policy_key(kind, env_id)
     if key in results:
         return results[key]
@@ -210,17 +210,18 @@ def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[
 def policy_key(kind: str, env_id: str) -> str:
     """A trained policy's key in the results: what it was trained on, the policy and, where `gym-fetch train`
     takes other than its default steps on the task, those (results from before that setting lack them)."""
-    from fetch.learn import DEFAULT_STEPS, default_steps
+    from fetch.learn.settings import task_training
+    from fetch.tasks import Training
     from learning_curves import auto_variant
 
-    steps = default_steps(env_id)
-    return f"policy/{kind}/{env_id}/{auto_variant(env_id)}" + (f"/{steps}steps" if steps != DEFAULT_STEPS else "")
+    steps = task_training(env_id).steps
+    return f"policy/{kind}/{env_id}/{auto_variant(env_id)}" + (f"/{steps}steps" if steps != Training().steps else "")
 
 
 def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves: pathlib.Path) -> None:
     """Policy success trained on generated demos, on their sources, and (from learning_curves.py) on 100 expert
     demos; the bar is generated >= expert-100."""
-    from fetch.learn import default_steps
+    from fetch.learn.settings import task_training
     from learning_curves import auto_variant
     from learning_curves import load_results as curve_results
 
@@ -237,7 +238,7 @@ def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves:
                  else "-" for kind in TRAINED]
         expert = [r["success_rate"] for r in curve_rows
                   if (r["task"], r["recording"], r["policy"], r["demos"], r["steps"])
-                  == (env_id, "dart", policy, 100, default_steps(env_id))]
+                  == (env_id, "dart", policy, 100, task_training(env_id).steps)]
         reference, verdict = "-", ""
         if expert:
             mean = float(np.mean(expert))

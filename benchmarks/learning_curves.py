@@ -62,17 +62,21 @@ MEASURED_VARIANTS: dict[str, dict[str, Any]] = {
     "mlp-chunk-x5-offsets-mirror": {"kind": "mlp-chunk", "members": 5, "goal_offsets": True, "mirror": True},
     "gru-mirror": {"kind": "gru", "mirror": True},
 }
-"""What `--policy auto` trains where it adds settings to a kind (fetch.learn.MEASURED_SETTINGS): an
-ensemble, goal offsets; `mirror` is the training setting (fetch.learn.MEASURED_MIRROR: the demos'
+"""What `--policy auto` trains where it adds settings to a kind (the task table's `fetch.tasks.Training`): an
+ensemble, goal offsets; `mirror` is the training setting (`Training.mirror`: the demos'
 mirror images too)."""
 
 
 def auto_variant(task: str) -> str:
     """The name (a `POLICY_VARIANTS` or `MEASURED_VARIANTS` key) of what `gym-fetch train --policy auto` trains
     on `task`."""
-    from fetch.learn import MEASURED_MIRROR, auto_settings
+    from fetch.learn.settings import task_training
+    from fetch.tasks import Training
 
-    settings = {**auto_settings(task), **({"mirror": True} if task in MEASURED_MIRROR else {})}
+    auto, plain = task_training(task), Training()
+    changed = [name for name in Training._fields
+               if name not in ("policy", "steps") and getattr(auto, name) != getattr(plain, name)]
+    settings = {"kind": auto.policy, **{name: getattr(auto, name) for name in changed}}
     return next((name for name, variant in MEASURED_VARIANTS.items() if variant == settings), settings["kind"])
 
 
@@ -84,7 +88,7 @@ class Job:
     demos: int
     seed: int
     steps: int | None = None
-    """gradient steps where `gym-fetch train` takes other than the default (fetch.learn.MEASURED_STEPS);
+    """gradient steps where `gym-fetch train` takes other than the default (`measured_steps`);
     None: the benchmark's `--steps`."""
 
     @property
@@ -93,14 +97,19 @@ class Job:
         return f"{self.task}__{self.recording}__{self.policy}__n{self.demos}__s{self.seed}{more}"
 
 
+def measured_steps() -> dict[str, int]:
+    """The tasks on which `gym-fetch train` takes other than the default steps, and those steps."""
+    from fetch.tasks import REGISTRATIONS, Training
+
+    return {r.env_id: r.training.steps for r in REGISTRATIONS if r.training.steps != Training().steps}
+
+
 def jobs() -> Iterator[Job]:
     """Every run, in the order they are worth having: one training seed of everything (the 100-demo point
     on every task, which is the bar, then the comparisons and the curves), then the next seed."""
-    from fetch.learn import MEASURED_STEPS
-
     for seed in SEEDS:  # the bar, with the defaults: DART recording, `gym-fetch train --policy auto`, its steps
         for task in ALL_TASKS:
-            yield Job(task, "dart", auto_variant(task), 100, seed, MEASURED_STEPS.get(task))
+            yield Job(task, "dart", auto_variant(task), 100, seed, measured_steps().get(task))
     for seed in SEEDS:
         for task in ALL_TASKS:
             yield Job(task, "stop", "mlp-chunk", 100, seed)
@@ -150,20 +159,21 @@ def train_and_evaluate(dataset: pathlib.Path, run_dir: pathlib.Path, policy_name
     all) and evaluate it on `EPISODES` seeds disjoint from the data's: the one harness every benchmark uses."""
     from fetch.learn import load
     from fetch.learn.evaluate import evaluate
-    from fetch.learn.policies import KIND_DEFAULTS
-    from fetch.learn.train import TrainConfig, train
+    from fetch.learn.kinds import PolicySettings
+    from fetch.learn.settings import TrainConfig, TrainPlan
+    from fetch.learn.train import train
 
     policy = dict({**POLICY_VARIANTS, **MEASURED_VARIANTS}[policy_name])
     mirror = bool(policy.pop("mirror", False))
-    policy = {**KIND_DEFAULTS.get(policy["kind"], {}), **policy}
     config = TrainConfig(steps=steps, seed=seed, demos=demos, mirror=mirror)
     start, cpu = time.perf_counter(), time.process_time()
-    trained = train(dataset, run_dir, policy, config, log=lambda _: None, show_progress=False)
+    trained = train(dataset, run_dir, TrainPlan(PolicySettings.of(**policy), config), log=lambda _: None,
+                    show_progress=False)
     train_s, train_cpu = time.perf_counter() - start, time.process_time() - cpu
     start, cpu = time.perf_counter(), time.process_time()
     outcome = evaluate(load(trained.run), EPISODES)
     # CPU seconds are what a run costs on an idle machine; wall seconds here include the other work.
-    return {"policy_settings": policy, "train": dataclasses.asdict(config),
+    return {"policy_settings": trained.plan.policy.as_dict(), "train": dataclasses.asdict(config),
             "steps": steps, "train_seconds": train_s, "train_cpu_seconds": train_cpu,
             "resumed_from": trained.resumed_from, "eval_seconds": time.perf_counter() - start,
             "eval_cpu_seconds": time.process_time() - cpu,
@@ -194,8 +204,6 @@ def _cell(rows: list[dict[str, Any]]) -> str:
 def report(results: list[dict[str, Any]], steps: int) -> str:
     """The markdown table of every result so far."""
 
-    from fetch.learn import MEASURED_STEPS
-
     def pick(**match: Any) -> list[dict[str, Any]]:
         return [r for r in results if all(r[k] == v for k, v in match.items())]
 
@@ -203,7 +211,7 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
              "Written by `benchmarks/learning_curves.py` (see its docstring); success % is `is_success` at step 50",
              f"of {EPISODES} evaluation episodes on seeds from 1,000,000 up (none from the data), mean ± std over the",
              f"training seeds that have finished (their count in brackets). {steps} gradient steps per run "
-             f"({'; '.join(f'{n} on {t}' for t, n in sorted(MEASURED_STEPS.items()))} in the first table, as "
+             f"({'; '.join(f'{n} on {t}' for t, n in sorted(measured_steps().items()))} in the first table, as "
              "`gym-fetch train` takes there), "
              "one thread, a machine of 2 cores shared with other work.", ""]
     sections = (("## 100 expert demos, every task, with the defaults (the bar: >= 80 % on all but Slide)",
@@ -225,7 +233,7 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
             policy = kind or auto_variant(task)
             # The bar's runs take the steps `gym-fetch train` takes on the task (a result's `steps`: those it took).
             rows = pick(task=task, recording=recording, policy=policy, demos=100,
-                        **({"steps": MEASURED_STEPS.get(task, steps)} if named else {}))
+                        **({"steps": measured_steps().get(task, steps)} if named else {}))
             length = f"{np.mean([r['mean_length'] for r in rows]):.1f}" if rows else ""
             cpu = [r["train_cpu_seconds"] for r in rows if "train_cpu_seconds" in r]
             seconds = f"{np.mean(cpu):.0f}" if cpu else ""
@@ -312,7 +320,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--report-only", action="store_true", help="rewrite the table and plot from the results; no runs")
     args = p.parse_args(argv)
     import fetch  # noqa: F401  (registers the ids)
-    from fetch.learn.train import TrainConfig
+    from fetch.learn.settings import TrainConfig
 
     steps = args.steps or TrainConfig().steps
     results = pathlib.Path(args.results)

@@ -61,8 +61,9 @@ VARIANTS: dict[str, tuple[str, int, dict[str, Any], dict[str, Any]]] = {
 def run(results: pathlib.Path, task: str, variant: str, seed: int = 0) -> dict[str, Any] | None:
     from fetch.learn import load
     from fetch.learn.evaluate import evaluate
-    from fetch.learn.policies import KIND_DEFAULTS
-    from fetch.learn.train import TrainConfig, train
+    from fetch.learn.kinds import PolicySettings
+    from fetch.learn.settings import TrainConfig, TrainPlan
+    from fetch.learn.train import train
 
     name = f"{task}__{variant}" + (f"__s{seed}" if seed else "")
     target = results / "choices" / f"{name}.json"
@@ -70,11 +71,10 @@ def run(results: pathlib.Path, task: str, variant: str, seed: int = 0) -> dict[s
         return None
     recording, steps, net, extra = VARIANTS[variant]
     data = lc.collected(results, task, recording, 100)
-    kind = net.get("kind", "mlp-chunk")
-    policy = {**KIND_DEFAULTS.get(kind, {}), "kind": kind, **net}
+    policy = PolicySettings.of(net.get("kind", "mlp-chunk"), **{k: v for k, v in net.items() if k != "kind"})
     config = TrainConfig(steps=steps, seed=seed, demos=100, **extra)
     start, cpu = time.perf_counter(), time.process_time()
-    trained = train(data, results / "choices_runs" / name, policy, config,
+    trained = train(data, results / "choices_runs" / name, TrainPlan(policy, config),
                     log=lambda _: None, show_progress=False)
     out = {"task": task, "variant": variant, "seed": seed, "train_seconds": time.perf_counter() - start,
            "train_cpu_seconds": time.process_time() - cpu, "valid_loss": trained.valid_loss,

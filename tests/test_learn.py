@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import os
@@ -148,7 +149,8 @@ def test_temporal_ensembling_averages_every_chunk_prediction_for_this_step(torch
 def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reach: pathlib.Path, tmp_path,
                                                                      kind: str) -> None:  # noqa: ANN001
     from fetch.learn.data import flat_obs
-    from fetch.learn.policies import PolicyConfig, build
+    from fetch.learn.kinds import PolicyConfig
+    from fetch.learn.policies import build
     from fetch.learn.runtime import load
 
     assert _train(reach, tmp_path / "run", "--policy", kind, "--steps", "40", "--members", "3") == 0
@@ -479,32 +481,57 @@ def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  
 def test_train_takes_the_steps_measured_for_the_task_unless_told(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     import fetch.learn
-    from fetch.learn import DEFAULT_STEPS, MEASURED_STEPS, default_steps
-    from fetch.tasks import ENV_IDS
+    import fetch.tasks
+    from fetch.learn.settings import task_training
+    from fetch.tasks import Training, registration
 
-    assert set(MEASURED_STEPS) <= set(ENV_IDS)
-    assert default_steps("Bin-pick-v2") == 10000 and default_steps("Reach-v2") == DEFAULT_STEPS == 5000
-    monkeypatch.setitem(fetch.learn.MEASURED_STEPS, "Reach-v2", 30)  # a measured exception, small enough for a test
+    assert task_training("Bin-pick-v2").steps == 10000 and task_training("Reach-v2").steps == Training().steps == 5000
+    # A measured exception, small enough for a test:
+    reach_line = registration("Reach-v2")._replace(training=Training(steps=30))
+    monkeypatch.setitem(fetch.tasks._BY_ENV_ID, "Reach-v2", reach_line)
     assert _train(reach, tmp_path / "auto") == 0
     assert fetch.learn.load(tmp_path / "auto").trained_steps == 30
     assert _train(reach, tmp_path / "told", "--steps", "20") == 0
     assert fetch.learn.load(tmp_path / "told").trained_steps == 20
 
 
+def test_every_task_trains_a_registered_kind_and_every_kind_is_complete(torch) -> None:  # noqa: ANN001
+    from fetch.learn.kinds import KINDS, PolicySettings, kind
+    from fetch.learn.policies import Kind, implementation
+    from fetch.tasks import REGISTRATIONS
+
+    for k in KINDS:
+        assert isinstance(implementation(k.name), Kind), k.name
+        assert set(k.own) <= {f.name for f in dataclasses.fields(PolicySettings)}, k.name
+        assert all(getattr(PolicySettings.of(k.name), n) == v for n, v in k.defaults.items())
+    for r in REGISTRATIONS:
+        assert kind(r.training.policy).name == r.training.policy, r.env_id
+        assert r.task.mirrors or not r.training.mirror, f"{r.env_id}: auto mirrors symmetric tasks only"
+        assert r.training.chunk is None or "chunk" in kind(r.training.policy).own, r.env_id
+
+
+def test_the_python_api_trains_what_the_command_trains(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
+    """`train(dataset, out, TrainRequest(...))` decides its defaults where the CLI does: the same settings and
+    weights."""
+    from fetch.learn.settings import TrainRequest
+    from fetch.learn.train import train
+
+    assert main(["train", str(reach), "--out", str(tmp_path / "cli"), "--steps", "20"]) == 0  # not TINY: defaults
+    result = train(reach, tmp_path / "api", TrainRequest(steps=20), show_progress=False, log=lambda _: None)
+    cli, api = _checkpoint(torch, tmp_path / "cli"), _checkpoint(torch, tmp_path / "api")
+    assert cli["policy"] == api["policy"] == {**result.plan.policy.as_dict(), "obs_size": api["policy"]["obs_size"]}
+    assert cli["train"] == api["train"]
+    assert all(torch.equal(cli["model"][k], api["model"][k]) for k in cli["model"])
+
+
 def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
-    from fetch.learn import MEASURED_MIRROR, MEASURED_POLICY, MEASURED_SETTINGS, auto_settings, policy_for
     from fetch.learn.data import velocity_columns
     from fetch.learn.runtime import load
-    from fetch.tasks import ENV_IDS, task_class
+    from fetch.learn.settings import task_training
 
-    assert set(MEASURED_POLICY) | set(MEASURED_SETTINGS) <= set(ENV_IDS), "every exception names a registered task"
-    assert MEASURED_MIRROR and all(task_class(t).mirrors for t in MEASURED_MIRROR), "auto mirrors symmetric tasks only"
-    assert policy_for("Drawer-close-v2") == "mlp-chunk" and policy_for("Reach-v2") == "gru"
-    assert auto_settings("Push-v2") == {"kind": "mlp-chunk", "members": 5, "goal_offsets": True, "velocities": False,
-                                        "chunk": 1}
-    assert auto_settings("Reach-v2") == {"kind": "gru"}
+    assert task_training("Drawer-close-v2").policy == "mlp-chunk" and task_training("Reach-v2").policy == "gru"
     assert _train(reach, tmp_path / "run", "--steps", "20") == 0  # --policy auto
-    assert load(tmp_path / "run").config.kind == policy_for("Reach-v2")
+    assert load(tmp_path / "run").config.kind == "gru"
     push = tmp_path / "push"
     assert main(["collect", "--env", "Push-v2", "--device", "expert", "--episodes", "3", "--render", "none",
                  "--max-steps", "50", "--out", str(push)]) == 0
@@ -512,7 +539,7 @@ def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib
     auto = load(tmp_path / "push-run").config
     assert auto.members == 5 and auto.goal_offsets and auto.chunk == 1
     assert auto.blind == velocity_columns(gym.make("Push-v2").unwrapped.observation_layout)
-    assert _checkpoint(torch, tmp_path / "push-run")["train"]["mirror"]  # fetch.learn.MEASURED_MIRROR
+    assert _checkpoint(torch, tmp_path / "push-run")["train"]["mirror"]  # Training(mirror=True) on Push
     assert _train(push, tmp_path / "push-one", "--steps", "5", "--members", "1", "--no-goal-offsets",
                   "--no-mirror", "--velocities", "--chunk", "10") == 0
     one = load(tmp_path / "push-one").config  # flags override auto

@@ -84,9 +84,22 @@ def dataset_table() -> str:
     return "\n".join(rows)
 
 
-BLOCKS = {"tasks": task_table, "layouts": layout_tables, "dataset": dataset_table}
+def training_table() -> str:
+    """What `gym-fetch train --policy auto` trains on each task: its line's `Training` in the task table."""
+    rows = ["| id | policy | steps | ensemble | goal offsets | velocities | mirror images | chunk |",
+            "|---|---|---|---|---|---|---|---|"]
+    for reg in REGISTRATIONS:
+        t = reg.training
+        chunk = "the kind's" if t.chunk is None else str(t.chunk)
+        rows.append(f"| `{reg.env_id}` | {t.policy} | {t.steps} | {t.members} | {'yes' if t.goal_offsets else 'no'} "
+                    f"| {'seen' if t.velocities else 'not seen'} | {'yes' if t.mirror else 'no'} | {chunk} |")
+    return "\n".join(rows)
+
+
+BLOCKS = {"tasks": task_table, "layouts": layout_tables, "dataset": dataset_table, "training": training_table}
 """Generated blocks between `<!-- NAME:begin -->` and `<!-- NAME:end -->` markers."""
-PAGES = {"tasks": "README.md", "layouts": "docs/tasks.md", "dataset": "docs/datasets.md"}
+PAGES = {"tasks": "README.md", "layouts": "docs/tasks.md", "dataset": "docs/datasets.md",
+         "training": "docs/training.md"}
 """The page (from the repository's root) that holds each block."""
 
 

@@ -43,19 +43,6 @@ VIDEO_CODEC = "libx264"
 VIDEO_OPTIONS = {"crf": "18", "g": "2", "bf": "0"}
 """H.264 (LeRobot's default is AV1), a key frame every 2 frames as LeRobot encodes for random access."""
 ROBOT_TYPE = "fetch"
-INSTRUCTIONS: dict[str, str] = {
-    "Bin-pick-v2": "pick the block out of the bin and bring it to the goal",
-    "Bin-place-v2": "put the block into the bin",
-    "Box-open-v2": "take the lid off the box and set it down beside the box",
-    "Box-close-v2": "put the lid on the box",
-    "Drawer-open-v2": "open the drawer",
-    "Drawer-close-v2": "close the drawer",
-    "Reach-v2": "move the gripper to the goal",
-    "Push-v2": "push the block to the goal",
-    "PickPlace-v2": "pick up the block and bring it to the goal",
-    "Slide-v2": "slide the puck to the goal",
-}
-"""The task string of each env id (LeRobot's `task`, what a language-conditioned policy reads)."""
 ACTION_NAMES = ("x", "y", "z", "gripper")
 _REPO_ID = re.compile(r"^[A-Za-z0-9][-\w.]*/[-\w.]+$")
 
@@ -210,8 +197,6 @@ def check_export(env_id: str, env_kwargs: dict[str, Any], cameras: Sequence[str]
 
     check_camera_list(cameras)
     check_image_size(image_size, "--image-size")
-    if env_id not in INSTRUCTIONS:
-        raise FetchError(f"no LeRobot task string for {env_id}; add one to fetch.dataset.lerobot.INSTRUCTIONS")
     env: Any = gym.make(env_id, **env_kwargs).unwrapped
     try:
         dt = float(env.dt)

@@ -146,8 +146,8 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
 
     env: Any = gym.make(ds.env_id, **ds.env_kwargs).unwrapped
     obs_layout = dict(env.observation_layout)
+    task = env.task.instruction
     env.close()
-    task = lerobot.INSTRUCTIONS[ds.env_id]
     names = list(chosen)
     corrected = any("intervention" in ds.demo(name) for name in names)
     videos = {camera: _Video(av, root, video_key(camera), fps, size) for camera in cameras}

@@ -1,4 +1,4 @@
-"""Policy networks for low-dimensional state, and the one table (`POLICIES`) that names them.
+"""The torch side of each policy kind (`fetch.learn.kinds.KINDS` names them): network, examples, acting.
 
 Every policy maps a batch of inputs X to predictions of the same shape as its targets Y, where
 only the entries M marks count in the loss. `mlp-chunk` reads one observation (N, D) and predicts
@@ -12,74 +12,21 @@ weights, trained side by side on the same batches; their predictions are stacked
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
-from typing import Any, cast
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol, cast
 
 import numpy as np
 import torch
 from torch import nn
 
-from fetch.errors import FetchError, UnknownNameError
+from fetch._references import resolve
+from fetch.errors import FetchError
 from fetch.learn.data import Episode, chunk_targets, policy_inputs
+from fetch.learn.kinds import PolicyConfig, kind
 
 ACTION_SIZE = 4
-
-
-@dataclasses.dataclass(frozen=True)
-class PolicyConfig:
-    """What a policy is: its kind, sizes, and how it acts (stored in every checkpoint as plain values)."""
-
-    kind: str
-    obs_size: int
-    hidden: int = 256
-    layers: int = 2
-    chunk: int = 10
-    """mlp-chunk: actions predicted per observation (1: plain behaviour cloning)."""
-    ensemble_decay: float = 0.01
-    """mlp-chunk: ACT's temporal-ensembling weight exp(-decay * i), i = 0 for the oldest prediction."""
-    seq_len: int = 10
-    """gru: training window [steps]; acting, the hidden state restarts every `seq_len` steps as in training."""
-    loss: str = "l1"
-    members: int = 1
-    """networks trained side by side from different initial weights; the policy acts on their mean."""
-    goal_offsets: bool = False
-    """also see the goal relative to the achieved goal and to the grip site (`data.with_goal_offsets`)."""
-    blind: tuple[int, ...] = ()
-    """entries of the input the policy does not see (set to 0 before normalising): the observation's
-    velocities with `--no-velocities` (`data.velocity_columns`)."""
-
-    def __post_init__(self) -> None:
-        if self.kind not in POLICIES:
-            raise UnknownNameError("policy", self.kind, tuple(POLICIES))
-        if self.loss not in LOSSES:
-            raise UnknownNameError("loss", self.loss, LOSSES)
-        for name in ("obs_size", "hidden", "layers", "chunk", "seq_len", "members"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or value < 1:
-                raise FetchError(f"policy {name} must be a whole number >= 1, got {value!r}")
-        if not isinstance(self.goal_offsets, bool):
-            raise FetchError(f"goal_offsets must be true or false, got {self.goal_offsets!r}")
-        object.__setattr__(self, "blind", tuple(self.blind))  # a checkpoint may hold a list
-        if not all(isinstance(i, int) and 0 <= i < self.obs_size for i in self.blind):
-            raise FetchError(f"blind must list input entries 0..{self.obs_size - 1}, got {list(self.blind)}")
-        if not self.ensemble_decay >= 0:
-            raise FetchError(f"ensemble_decay must be >= 0, got {self.ensemble_decay!r}")
-
-    def as_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, raw: dict[str, Any]) -> PolicyConfig:
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = set(raw) - known
-        if unknown:
-            raise FetchError(f"unknown policy settings {sorted(unknown)}; known: {sorted(known)}")
-        return cls(**raw)
-
-
-LOSSES = ("l1", "mse")
-KIND_DEFAULTS: dict[str, dict[str, Any]] = {"mlp-chunk": {}, "gru": {"hidden": 128, "layers": 1}}
-"""Settings of a kind that differ from `PolicyConfig`'s defaults (a GRU of 256 trains 4x slower on a CPU)."""
+Examples = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""Training examples: inputs X, targets Y, and which targets exist M."""
 
 
 class ChunkMLP(nn.Module):
@@ -121,7 +68,8 @@ class Members(nn.Module):
 
     def __init__(self, config: PolicyConfig) -> None:
         super().__init__()
-        self.nets = nn.ModuleList(POLICIES[config.kind](config) for _ in range(config.members))
+        network = implementation(config.kind).network
+        self.nets = nn.ModuleList(network(config) for _ in range(config.members))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return torch.stack([net(x) for net in self.nets])
@@ -150,16 +98,10 @@ class Samples:
 
 def samples(config: PolicyConfig, episodes: Sequence[Episode], normalize: Any) -> Samples:
     """Every training example of `episodes`, inputs normalised by `normalize`."""
+    examples = implementation(config.kind).examples
     xs, ys, ms = [], [], []
     for e in episodes:
-        obs = normalize(policy_inputs(e, config.goal_offsets, config.blind))
-        if config.kind == "gru":
-            # A window starts at every step; past the demo's end the last observation repeats, masked out.
-            x, m = chunk_targets(obs, config.seq_len)
-            y, _ = chunk_targets(e.actions, config.seq_len)
-        else:
-            x = obs
-            y, m = chunk_targets(e.actions, config.chunk)
+        x, y, m = examples(config, normalize(policy_inputs(e, config.goal_offsets, config.blind)), e.actions)
         xs.append(x)
         ys.append(y)
         ms.append(m)
@@ -167,7 +109,7 @@ def samples(config: PolicyConfig, episodes: Sequence[Episode], normalize: Any) -
 
 
 def build(config: PolicyConfig) -> nn.Module:
-    return Members(config) if config.members > 1 else POLICIES[config.kind](config)
+    return Members(config) if config.members > 1 else implementation(config.kind).network(config)
 
 
 def masked_loss(config: PolicyConfig, prediction: torch.Tensor, target: torch.Tensor,
@@ -180,5 +122,92 @@ def masked_loss(config: PolicyConfig, prediction: torch.Tensor, target: torch.Te
     return (error * weights).sum() / (weights.sum() * ACTION_SIZE).clamp_min(1.0)
 
 
-POLICIES: dict[str, type[nn.Module]] = {"mlp-chunk": ChunkMLP, "gru": RecurrentPolicy}
-"""`--policy` choices: the network of each."""
+def member_mean(config: PolicyConfig, prediction: torch.Tensor) -> torch.Tensor:
+    """An ensemble's stacked (K, ...) predictions as their mean; a single network's as they are."""
+    return prediction.mean(dim=0) if config.members > 1 else prediction
+
+
+class Actor(Protocol):
+    """How a policy of one kind acts on a batch of normalised inputs (B, D), step after step."""
+
+    def reset(self) -> None:
+        """New episodes start."""
+
+    def __call__(self, x: torch.Tensor) -> np.ndarray:
+        """(B, D) inputs of this step -> (B, 4) actions."""
+
+
+class ChunkActor:
+    """Predicts a chunk of actions at every step and acts on the weighted mean of every chunk's prediction
+    for this step (ACT's temporal ensembling)."""
+
+    def __init__(self, config: PolicyConfig, model: nn.Module) -> None:
+        self.config, self.model = config, model
+        self.reset()
+
+    def reset(self) -> None:
+        self._chunks: list[np.ndarray] = []  # newest last, each (B, chunk, 4)
+
+    def __call__(self, x: torch.Tensor) -> np.ndarray:
+        self._chunks = (self._chunks + [member_mean(self.config, self.model(x)).numpy()])[-self.config.chunk:]
+        # The chunk made j steps ago predicted this step as its element j; the oldest weighs most.
+        ages = range(len(self._chunks) - 1, -1, -1)
+        weights = np.exp(-self.config.ensemble_decay * np.arange(len(self._chunks)))
+        predictions = np.stack([c[:, j] for c, j in zip(self._chunks, ages, strict=True)])
+        return np.tensordot(weights / weights.sum(), predictions, axes=1)
+
+
+class RecurrentActor:
+    """Carries the hidden state from step to step, restarted every `seq_len` steps as in training."""
+
+    def __init__(self, config: PolicyConfig, model: nn.Module) -> None:
+        self.config, self.model = config, cast(RecurrentPolicy | Members, model)
+        self.reset()
+
+    def reset(self) -> None:
+        self._t = 0
+        self._hidden: Any = None  # an ensemble's: one per member
+
+    def __call__(self, x: torch.Tensor) -> np.ndarray:
+        if self._t % self.config.seq_len == 0:
+            self._hidden = None
+        self._t += 1
+        out, self._hidden = self.model.step(x[:, None, :], self._hidden)
+        return member_mean(self.config, out)[:, 0].numpy()
+
+
+def _chunk_examples(config: PolicyConfig, obs: np.ndarray, actions: np.ndarray) -> Examples:
+    """One example per step: its observation, and the next `chunk` actions (masked past the demo's end)."""
+    y, m = chunk_targets(actions, config.chunk)
+    return obs, y, m
+
+
+def _window_examples(config: PolicyConfig, obs: np.ndarray, actions: np.ndarray) -> Examples:
+    """A window of `seq_len` steps starting at every step; past the demo's end the last observation
+    repeats, masked out."""
+    x, m = chunk_targets(obs, config.seq_len)
+    y, _ = chunk_targets(actions, config.seq_len)
+    return x, y, m
+
+
+@dataclasses.dataclass(frozen=True)
+class Kind:
+    """A policy kind's torch side, named by its `fetch.learn.kinds.PolicyKind.implementation`."""
+
+    network: Callable[[PolicyConfig], nn.Module]
+    """one network of the kind (`build` makes an ensemble of them)."""
+    examples: Callable[[PolicyConfig, np.ndarray, np.ndarray], Examples]
+    """a demo's (T, D) normalised inputs and (T, 4) actions -> its training examples X, Y, M."""
+    actor: Callable[[PolicyConfig, nn.Module], Actor]
+
+
+CHUNKED = Kind(ChunkMLP, _chunk_examples, ChunkActor)
+RECURRENT = Kind(RecurrentPolicy, _window_examples, RecurrentActor)
+
+
+def implementation(kind_name: str) -> Kind:
+    """The torch side of the kind `kind_name`."""
+    found = resolve(kind(kind_name).implementation)
+    if not isinstance(found, Kind):
+        raise FetchError(f"policy kind {kind_name}: {kind(kind_name).implementation} is not a policies.Kind")
+    return found

@@ -18,45 +18,9 @@ import torch
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
 from fetch.learn.data import Demos, Normalizer, load_demos, policy_inputs, with_reflections
-from fetch.learn.policies import PolicyConfig, Samples, build, masked_loss, samples
-
-
-@dataclasses.dataclass(frozen=True)
-class TrainConfig:
-    """How a policy is trained (stored in the checkpoint; a resumed run must ask for the same)."""
-
-    steps: int = 5000
-    """Gradient steps in all."""
-    batch_size: int = 256
-    lr: float = 1e-3
-    """[1] Adam's peak learning rate; it decays to 0 along a cosine over `steps`."""
-    weight_decay: float = 1e-4
-    obs_noise: float = 0.0
-    """Std of Gaussian noise added to the normalised observations while training (0: none)."""
-    seed: int = 0
-    demos: int = 0
-    """Train on the first `demos` of mask/train (0: all)."""
-    mirror: bool = False
-    """Also learn from each training demo's mirror image (`data.with_reflections`; symmetric tasks only)."""
-    checkpoint_every: int = 1000
-    """[steps] between checkpoints (and validation losses); one is also written at the end."""
-    threads: int = 1
-    """torch's intra-op threads: results are reproducible for a given count."""
-
-    def __post_init__(self) -> None:
-        for name in ("steps", "batch_size", "checkpoint_every", "threads"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or value < 1:
-                raise FetchError(f"--{name.replace('_', '-')} must be a whole number >= 1, got {value!r}")
-        for name in ("seed", "demos"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or value < 0:
-                raise FetchError(f"--{name} must be a whole number >= 0, got {value!r}")
-        for name in ("lr", "weight_decay", "obs_noise"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0) or (name == "lr" and value == 0):
-                raise FetchError(f"--{name.replace('_', '-')} must be a finite number "
-                                 f"{'> 0' if name == 'lr' else '>= 0'}, got {value!r}")
+from fetch.learn.kinds import PolicyConfig
+from fetch.learn.policies import Samples, build, masked_loss, samples
+from fetch.learn.settings import TrainConfig, TrainPlan, TrainRequest, plan
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,6 +32,8 @@ class TrainResult:
     train_loss: float
     valid_loss: float | None
     resumed_from: int
+    plan: TrainPlan
+    """what was trained: the policy's settings and the training's."""
 
 
 def learning_rate(config: TrainConfig, step: int) -> float:
@@ -100,15 +66,17 @@ def validation_loss(policy: PolicyConfig, model: torch.nn.Module, valid: Samples
     return total / float(m.sum())
 
 
-def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], policy: dict[str, Any],
-          config: TrainConfig, *, log: Any = None, show_progress: bool = True,
-          start_from: str | os.PathLike[str] | None = None) -> TrainResult:
-    """Train a policy of the settings `policy` (PolicyConfig fields but obs_size) on `dataset`, writing
-    `out/checkpoint.pt`. `dataset` is a dataset file or directory, or demos already loaded (and, say,
-    relabelled). A run that `out` already holds with the same settings is resumed from its last
-    checkpoint (one that finished is left as it is). `start_from`: another run whose policy this one
-    goes on training (`gym-fetch train --from`): its weights and its input normalisation, so what it
-    learnt still applies; `policy` must be its settings."""
+def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
+          request: TrainRequest | TrainPlan | None = None, *, log: Any = None,
+          show_progress: bool = True) -> TrainResult:
+    """Train a policy on `dataset`, writing `out/checkpoint.pt`, as `gym-fetch train` does.
+
+    `dataset` is a dataset file or directory, or demos already loaded (and, say, relabelled). `request`
+    says what to train, with the same defaults as the command (`settings.plan` fills them in; None: all
+    of them); a `TrainPlan` is trained as it is. A run that `out` already holds with the same settings is
+    resumed from its last checkpoint (one that finished is left as it is). Going on from another run
+    (`start_from`, `gym-fetch train --from`) starts from its weights and its input normalisation, so
+    what it learnt still applies, and keeps its policy settings."""
     from fetch._progress import progress
 
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
@@ -116,19 +84,25 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
     demos = dataset if isinstance(dataset, Demos) else load_demos(dataset)
     for origin in demos.origins or (demos.origin,):
         ckpt.require_outside(run, pathlib.Path(origin))
+    request = TrainRequest() if request is None else request
+    start_from = request.start_from
+    base = _base(start_from, demos.env_id) if start_from is not None else None
+    chosen = plan(request, demos, base) if isinstance(request, TrainRequest) else request
+    config = chosen.config
     if config.demos:
         if len(demos.train) < config.demos:
             raise FetchError(f"--demos {config.demos}: {demos.origin} has only {len(demos.train)} demos in mask/train")
         demos = dataclasses.replace(demos, train=demos.train[:config.demos])
-    source = {"dataset": demos.origin, "env_id": demos.env_id,
+    source: dict[str, Any] = {"dataset": demos.origin, "env_id": demos.env_id,
               "env_kwargs": json.dumps(demos.env_kwargs, sort_keys=True),
               "train_demos": [e.name for e in demos.train]}
-    base = _base(start_from, demos.env_id, source) if start_from is not None else None
+    if base is not None:
+        source["from"] = {"run": str(pathlib.Path(str(start_from)).resolve()), "step": int(base["step"])}
     horizon = demos.horizon
     if config.mirror:
         demos = with_reflections(demos)
-    offsets = bool(policy.get("goal_offsets", False))
-    policy_config = PolicyConfig(obs_size=policy_inputs(demos.train[0], offsets).shape[1], **policy)
+    policy_config = PolicyConfig(**chosen.policy.as_dict(),
+                                 obs_size=policy_inputs(demos.train[0], chosen.policy.goal_offsets).shape[1])
     torch.set_num_threads(config.threads)
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(config.seed)
@@ -215,21 +189,12 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str], 
         raise FetchError(f"{run}: no training step was taken")
     last_valid = history["valid_loss"][-1]
     return TrainResult(run, config.steps, history["train_loss"][-1],
-                       None if math.isnan(last_valid) else last_valid, start)
+                       None if math.isnan(last_valid) else last_valid, start, chosen)
 
 
-def _base(start_from: str | os.PathLike[str], env_id: str, source: dict[str, Any]) -> dict[str, Any]:
-    """The checkpoint of the run to go on from, checked to be of this task; `source` records it (a resumed
-    run must go on from the same one)."""
+def _base(start_from: str | os.PathLike[str], env_id: str) -> dict[str, Any]:
+    """The checkpoint of the run to go on from, checked to be of this task."""
     base = ckpt.read(start_from)
     if base["source"]["env_id"] != env_id:
         raise FetchError(f"--from {start_from} is a {base['source']['env_id']} policy; these demos are {env_id}")
-    source["from"] = {"run": str(pathlib.Path(start_from).resolve()), "step": int(base["step"])}
     return base
-
-
-def base_settings(start_from: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The policy settings (PolicyConfig fields but obs_size) and training settings of a run to go on from."""
-    base = ckpt.read(start_from)
-    policy = {k: v for k, v in base["policy"].items() if k != "obs_size"}
-    return policy, dict(base["train"])

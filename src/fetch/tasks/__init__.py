@@ -1,4 +1,6 @@
-"""The task table: each registered Gymnasium id, its task and its horizon, one line each."""
+"""The task table: each registered Gymnasium id, its task, its horizon and how a policy learns it, one
+line each. Everything else about a task is on its class (`tasks.base.Task`): its scene, observation,
+success rule, subtasks, instruction, expert and the window's view."""
 
 from __future__ import annotations
 
@@ -12,22 +14,44 @@ from fetch.tasks.classic import PickPlace, Push, Reach, Slide
 from fetch.tasks.drawer import DrawerClose, DrawerOpen
 
 
+class Training(NamedTuple):
+    """How `gym-fetch train` (`--policy auto`) learns a task unless told otherwise: the choices measured
+    best on it (docs/training.md, "Each task's defaults", has the measurements)."""
+
+    policy: str = "gru"
+    """the kind of policy (`fetch.learn.kinds.KINDS`)."""
+    steps: int = 5000
+    """gradient steps."""
+    mirror: bool = False
+    """also learn from each demo's mirror image (`Task.mirrors` tasks only)."""
+    members: int = 1
+    """networks in the ensemble."""
+    goal_offsets: bool = False
+    """also see the goal relative to the achieved goal and to the grip site."""
+    velocities: bool = True
+    """see the observation's velocities."""
+    chunk: int | None = None
+    """mlp-chunk: actions per prediction (None: the kind's default)."""
+
+
 class Registration(NamedTuple):
     env_id: str
     task: type[Task]
     max_episode_steps: int
+    training: Training = Training()
 
 
 REGISTRATIONS: tuple[Registration, ...] = (
-    Registration("Bin-pick-v2", BinPick, 50),
-    Registration("Bin-place-v2", BinPlace, 50),
+    Registration("Bin-pick-v2", BinPick, 50, Training(steps=10000)),
+    Registration("Bin-place-v2", BinPlace, 50, Training(steps=10000)),
     Registration("Box-open-v2", BoxOpen, 50),
     Registration("Box-close-v2", BoxClose, 50),
     Registration("Drawer-open-v2", DrawerOpen, 50),
-    Registration("Drawer-close-v2", DrawerClose, 50),
+    Registration("Drawer-close-v2", DrawerClose, 50, Training(policy="mlp-chunk")),
     Registration("Reach-v2", Reach, 50),
-    Registration("Push-v2", Push, 50),
-    Registration("PickPlace-v2", PickPlace, 50),
+    Registration("Push-v2", Push, 50, Training(policy="mlp-chunk", steps=10000, mirror=True, members=5,
+                                               goal_offsets=True, velocities=False, chunk=1)),
+    Registration("PickPlace-v2", PickPlace, 50, Training(steps=10000, mirror=True)),
     Registration("Slide-v2", Slide, 50),
 )
 
@@ -36,7 +60,7 @@ _BY_NAME: dict[str, type[Task]] = {r.task.name: r.task for r in REGISTRATIONS}
 _BY_ID: dict[str, type[Task]] = {r.env_id: r.task for r in REGISTRATIONS}
 
 
-_HORIZON: dict[str, int] = {r.env_id: r.max_episode_steps for r in REGISTRATIONS}
+_BY_ENV_ID: dict[str, Registration] = {r.env_id: r for r in REGISTRATIONS}
 
 
 MAX_STEPS = 100_000
@@ -46,9 +70,14 @@ attempt that never ends (a typo of a few zeros) is refused."""
 
 def registered_horizon(env_id: str) -> int:
     """[steps] the episode length `env_id` is registered with (Fetch's 50)."""
-    if env_id not in _HORIZON:
+    return registration(env_id).max_episode_steps
+
+
+def registration(env_id: str) -> Registration:
+    """The task table's line for `env_id`."""
+    if env_id not in _BY_ENV_ID:
         raise UnknownNameError("env", env_id, ENV_IDS)
-    return _HORIZON[env_id]
+    return _BY_ENV_ID[env_id]
 
 
 def mirroring_ids() -> tuple[str, ...]:

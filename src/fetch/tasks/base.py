@@ -67,6 +67,12 @@ class Task(abc.ABC):
     """
 
     name: ClassVar[str]
+    instruction: ClassVar[str]
+    """the task in one sentence, as a person is told it (LeRobot's `task` string, what a
+    language-conditioned policy reads)."""
+    expert: ClassVar[str]
+    """its scripted expert: "module:callable" (`fetch._references`), called with the observation layout
+    (`fetch.experts.make_expert`)."""
     robot: ClassVar[RobotConfig] = RobotConfig()
     parts: ClassVar[tuple[ob.Part, ...]]
     achieved: ClassVar[str]

@@ -103,6 +103,8 @@ class BinPick(_BinTask):
     """Pick the block out of the bin and bring it to a goal outside it (table or air)."""
 
     name = "bin_pick"
+    instruction = "pick the block out of the bin and bring it to the goal"
+    expert = "fetch.experts:bin_pick"
     spawn_range = 0.04
     """[m] the block's start around the bin's centre: >= 3.5 cm from every wall."""
     goal_range = 0.20
@@ -126,6 +128,8 @@ class BinPlace(_BinTask):
     """Put the block from the table into the bin, resting on its floor at the goal spot."""
 
     name = "bin_place"
+    instruction = "put the block into the bin"
+    expert = "fetch.experts:bin_place"
     success_rule = "block within 5 cm of the goal and its centre below the bin's rim"
     spawn_range = 0.20
     """[m] the block's start around the gripper's (outside the bin); see BinPick.goal_range."""

@@ -118,6 +118,8 @@ class BoxOpen(_BoxTask):
     """Take the lid off the box and set it down on the table at the goal beside the box."""
 
     name = "box_open"
+    instruction = "take the lid off the box and set it down beside the box"
+    expert = "fetch.experts:box_open"
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,
               start: Start) -> np.ndarray:
@@ -134,6 +136,8 @@ class BoxClose(_BoxTask):
     """
 
     name = "box_close"
+    instruction = "put the lid on the box"
+    expert = "fetch.experts:box_close"
     success_rule = "lid seated: its centre within 2 cm (xy) of the box's axis and 1 cm of the seated height"
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData, rng: np.random.Generator,

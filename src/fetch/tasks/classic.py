@@ -31,6 +31,8 @@ class Reach(_ClassicTask):
     """Move the grip site to a point sampled in a 30 cm cube around its start."""
 
     name = "reach"
+    instruction = "move the gripper to the goal"
+    expert = "fetch.experts.motion:Reach"
     success_rule = "grip site within 5 cm of the goal"
     robot = RobotConfig(scene="reach.xml", workspace=None, block_gripper=True)
     parts = GRIPPER_PARTS
@@ -86,6 +88,8 @@ class Push(_ObjectTask):
     """Push a block, fingers closed, to a goal on the table."""
 
     name = "push"
+    instruction = "push the block to the goal"
+    expert = "fetch.experts.motion:Push"
     robot = RobotConfig(scene="push.xml", workspace=None, block_gripper=True)
     params = ObjectGoal(obj_range=0.15, target_range=0.15)
     mirrors = True
@@ -102,6 +106,8 @@ class PickPlace(_ObjectTask):
     """Pick a block and bring it to a goal on the table or, half of the time, up to 45 cm above it."""
 
     name = "pick_place"
+    instruction = "pick up the block and bring it to the goal"
+    expert = "fetch.experts:pick_place"
     robot = RobotConfig(scene="pick_and_place.xml", workspace=None)
     params = ObjectGoal(obj_range=0.15, target_range=0.15, target_in_the_air=True)
     mirrors = True
@@ -116,6 +122,8 @@ class Slide(_ObjectTask):
     """Hit a low-friction puck so it slides to a goal out of reach on a long table."""
 
     name = "slide"
+    instruction = "slide the puck to the goal"
+    expert = "fetch.experts:slide"
     robot = RobotConfig(scene="slide.xml", workspace=None, block_gripper=True)
     params = ObjectGoal(obj_range=0.1, target_range=0.3, target_offset=(0.4, 0.0, 0.0))
     subtasks = (Subtask("slide", "object0", None, heading=GOAL),)

@@ -107,6 +107,8 @@ class DrawerOpen(_DrawerTask):
     """Hook the handle and pull the drawer open by at least 15 cm (goal: the handle fully open)."""
 
     name = "drawer_open"
+    instruction = "open the drawer"
+    expert = "fetch.experts.motion:Drawer"
     success_rule = "drawer open by >= 15 cm (the handle within 5 cm of the goal)"
     start_opening = 0.0
     goal_opening = SLIDE
@@ -117,6 +119,8 @@ class DrawerClose(_DrawerTask):
     """Push the open drawer shut to at most 5 cm (goal: the handle with the drawer closed)."""
 
     name = "drawer_close"
+    instruction = "close the drawer"
+    expert = "fetch.experts.motion:Drawer"
     success_rule = "drawer open by <= 5 cm (the handle within 5 cm of the goal)"
     start_opening = SLIDE
     goal_opening = 0.0

@@ -1,0 +1,129 @@
+"""The kinds of policy `gym-fetch train` learns: one record each (`KINDS`), and the settings of a policy.
+
+A kind's record says what it is for `--help`, which settings it reads that others do not, its defaults,
+and where its torch side lives (`implementation`, resolved only when a policy is built or run): the
+network, how a demo becomes training examples, and how the policy acts step by step
+(`fetch.learn.policies.Kind`). A new kind is one record here and one `Kind` there. Nothing here imports
+torch, so the CLI can list the kinds without it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+from fetch.errors import FetchError, UnknownNameError
+
+
+@dataclasses.dataclass(frozen=True)
+class PolicyKind:
+    name: str
+    """`--policy NAME`."""
+    summary: str
+    """what it is, for `--help`."""
+    own: tuple[str, ...]
+    """the `PolicySettings` only this kind reads: a flag for one of them is refused for other kinds."""
+    defaults: Mapping[str, Any]
+    """its settings where they differ from `PolicySettings`' defaults."""
+    implementation: str
+    """its torch side, "module:attribute" (`fetch._references`): a `fetch.learn.policies.Kind`."""
+
+
+KINDS: tuple[PolicyKind, ...] = (
+    PolicyKind("gru", "a recurrent policy (BC-RNN): reads a window of observations, one action per step",
+               own=("seq_len",), defaults={"hidden": 128, "layers": 1},  # a GRU of 256 trains 4x slower on a CPU
+               implementation="fetch.learn.policies:RECURRENT"),
+    PolicyKind("mlp-chunk", "an MLP predicting chunks of actions with ACT's temporal ensembling, ~7x faster to "
+               "train", own=("chunk", "ensemble_decay"), defaults={},
+               implementation="fetch.learn.policies:CHUNKED"),
+)
+POLICY_KINDS: tuple[str, ...] = tuple(k.name for k in KINDS)
+_BY_NAME = {k.name: k for k in KINDS}
+
+
+def kind(name: str) -> PolicyKind:
+    if name not in _BY_NAME:
+        raise UnknownNameError("policy", name, POLICY_KINDS)
+    return _BY_NAME[name]
+
+
+LOSSES = ("l1", "mse")
+
+
+@dataclasses.dataclass(frozen=True)
+class PolicySettings:
+    """What a policy is, but for the size of its input: its kind, sizes, and how it acts. Plain values,
+    stored in every checkpoint (with the input size: `PolicyConfig`)."""
+
+    kind: str
+    hidden: int = 256
+    """units per layer."""
+    layers: int = 2
+    chunk: int = 10
+    """mlp-chunk: actions predicted per observation (1: plain behaviour cloning)."""
+    ensemble_decay: float = 0.01
+    """mlp-chunk: ACT's temporal-ensembling weight exp(-decay * i), i = 0 for the oldest prediction."""
+    seq_len: int = 10
+    """gru: training window [steps]; acting, the hidden state restarts every `seq_len` steps as in training."""
+    loss: str = "l1"
+    members: int = 1
+    """networks trained side by side from different initial weights; the policy acts on their mean."""
+    goal_offsets: bool = False
+    """also see the goal relative to the achieved goal and to the grip site (`data.with_goal_offsets`)."""
+    blind: tuple[int, ...] = ()
+    """entries of the input the policy does not see (set to 0 before normalising): the observation's
+    velocities with `--no-velocities` (`data.velocity_columns`)."""
+
+    def __post_init__(self) -> None:
+        kind(self.kind)
+        if self.loss not in LOSSES:
+            raise UnknownNameError("loss", self.loss, LOSSES)
+        for name in ("hidden", "layers", "chunk", "seq_len", "members"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise FetchError(f"policy {name} must be a whole number >= 1, got {value!r}")
+        if not isinstance(self.goal_offsets, bool):
+            raise FetchError(f"goal_offsets must be true or false, got {self.goal_offsets!r}")
+        object.__setattr__(self, "blind", tuple(self.blind))  # a checkpoint may hold a list
+        if not all(isinstance(i, int) and i >= 0 for i in self.blind):
+            raise FetchError(f"blind must list input entries (whole numbers >= 0), got {list(self.blind)}")
+        if not self.ensemble_decay >= 0:
+            raise FetchError(f"ensemble_decay must be >= 0, got {self.ensemble_decay!r}")
+
+    @classmethod
+    def of(cls, kind_name: str, **settings: Any) -> PolicySettings:
+        """A policy of `kind_name` with its kind's defaults, then `settings`."""
+        return cls(kind=kind_name, **{**kind(kind_name).defaults, **settings})
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class PolicyConfig(PolicySettings):
+    """A policy's settings and the size of its input: all a network is built from."""
+
+    obs_size: int = dataclasses.field(default=0, kw_only=True)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.obs_size, int) or self.obs_size < 1:
+            raise FetchError(f"policy obs_size must be a whole number >= 1, got {self.obs_size!r}")
+        if not all(i < self.obs_size for i in self.blind):
+            raise FetchError(f"blind must list input entries 0..{self.obs_size - 1}, got {list(self.blind)}")
+
+    @classmethod
+    def from_dict(cls, raw: dict[str, Any]) -> PolicyConfig:
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(raw) - known
+        if unknown:
+            raise FetchError(f"unknown policy settings {sorted(unknown)}; known: {sorted(known)}")
+        return cls(**raw)
+
+    @property
+    def settings(self) -> PolicySettings:
+        """These settings without the input size."""
+        raw = self.as_dict()
+        del raw["obs_size"]
+        return PolicySettings(**raw)
