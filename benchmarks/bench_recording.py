@@ -62,10 +62,10 @@ def overhead(env_id: str, steps: int, repeats: int) -> tuple[float, float, float
 def commit_times(env_id: str, existing: int) -> tuple[float, float, float]:
     """[ms] the control loop's cost of committing a 500-step demo, and the writer thread's time to make it
     durable (demo file + index with `existing` demos), median over 10 commits."""
-    env = make_env(CollectConfig(env_id=env_id, max_steps=600))
+    env = make_env(CollectConfig(env_id=env_id, max_steps=600, stop_on_success=True))
     with tempfile.TemporaryDirectory() as out:
         config = CollectConfig(env_id=env_id, out=out, max_steps=600, device="expert", render="none",
-                               keep_failures=True)
+                               keep_failures=True, stop_on_success=True)
         writer = open_writer("hdf5", out, env, settings=config.settings(), device="bench")
         assert isinstance(writer, DatasetWriter)
         buffer = EpisodeBuffer(recorded_layout(env), capacity=600)
@@ -100,7 +100,8 @@ def commit_times(env_id: str, existing: int) -> tuple[float, float, float]:
 def replay_speed(env_id: str, demos: int) -> tuple[float, float, float]:
     """Steps/s of `replay --check` and of plain env.step on the same demos' actions."""
     with tempfile.TemporaryDirectory() as out:
-        config = CollectConfig(env_id=env_id, out=out, episodes=demos, device="expert", render="none")
+        config = CollectConfig(env_id=env_id, out=out, episodes=demos, device="expert", render="none",
+                               stop_on_success=True, max_steps=500)  # as measured: each demo ends at success
         env = make_env(config)
         Session(config, ExpertDevice(env), env=env, log=lambda text: None).run()
         with open_dataset(out) as ds:

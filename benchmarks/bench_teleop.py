@@ -53,7 +53,7 @@ def main() -> None:
     for shadows in args.shadows.split(","):
         with tempfile.TemporaryDirectory() as out:
             config = CollectConfig(env_id=args.env, out=out, episodes=args.demos, device="expert", render="human",
-                                   control_hz=args.hz)
+                                   control_hz=args.hz, stop_on_success=True, max_steps=500)
             env = make_env(config)
             viewer = TimedViewer(env, GAMEPAD.legend, shadows=shadows == "on")
             session = Session(config, ExpertDevice(env), env=env, display=viewer, log=lambda text: None)

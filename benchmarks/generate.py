@@ -17,6 +17,7 @@ benchmark runs again (a generation stopped midway resumes where it was). Prints 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import pathlib
@@ -59,7 +60,10 @@ class NoisyExpert:
 
 def record_sources(env_id: str, out: pathlib.Path, count: int, noise: float) -> None:
     """`count` successful demos (resumes a partial directory)."""
-    config = CollectConfig(env_id=env_id, out=str(out), episodes=count, device="expert", render="none")
+    # Each source attempt ends at success (within 500 steps), as these figures were measured: not the expert's
+    # collect default of the whole horizon.
+    config = CollectConfig(env_id=env_id, out=str(out), episodes=count, device="expert", render="none",
+                           stop_on_success=True, max_steps=500)
     if (out / "demos.hdf5").exists():
         from fetch.dataset import open_dataset
 
@@ -67,7 +71,7 @@ def record_sources(env_id: str, out: pathlib.Path, count: int, noise: float) -> 
             have = len(ds.demo_names)
         if have >= count:
             return
-        config = CollectConfig(env_id=env_id, out=str(out), episodes=count - have, device="expert", render="none")
+        config = dataclasses.replace(config, episodes=count - have)
     env = gym.make(env_id, max_episode_steps=config.max_steps)
     device = NoisyExpert(env, noise) if noise else make_expert_device(env)
     summary = Session(config, device, env=env, log=lambda text: None).run()

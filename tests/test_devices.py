@@ -82,3 +82,25 @@ def test_an_alias_is_stored_by_the_device_s_name() -> None:
 def test_an_unknown_device_names_the_valid_ones() -> None:
     with pytest.raises(UnknownNameError, match="unknown device 'spacemouse'; known: gamepad, xbox, keyboard"):
         CollectConfig(env_id="Reach-v2", device="spacemouse")
+
+
+def test_a_python_config_decides_what_collect_decides(tmp_path: Path) -> None:
+    """CollectConfig's open settings are decided in one place, for `gym-fetch collect` and Python alike: by
+    the device for a new dataset, by the dataset's own settings for one that exists."""
+    from fetch.cli import main
+    from fetch.dataset import open_dataset
+
+    expert = CollectConfig(env_id="Reach-v2", device="expert", out=str(tmp_path / "new"))
+    assert (expert.stop_on_success, expert.max_steps) == (False, 50)  # to the registered horizon
+    person = CollectConfig(env_id="Reach-v2", device="keyboard", out=str(tmp_path / "new"))
+    assert (person.stop_on_success, person.max_steps) == (True, 500)
+    told = CollectConfig(env_id="Reach-v2", device="expert", out=str(tmp_path / "new"), max_steps=70)
+    assert (told.stop_on_success, told.max_steps) == (False, 70)
+    out = tmp_path / "demos"
+    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "1", "--render", "none",
+                 "--out", str(out), "--stop-on-success", "--max-steps", "60"]) == 0
+    with open_dataset(out) as ds:
+        recorded = dict(ds.settings)
+    adding = CollectConfig(env_id="Reach-v2", device="expert", out=str(out))
+    assert (recorded["stop_on_success"], recorded["max_steps"]) == (True, 60)
+    assert (adding.stop_on_success, adding.max_steps) == (True, 60)

@@ -20,8 +20,8 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     from fetch.learn import device as _  # noqa: F401  (registers --device policy, from the layer above teleop)
     from fetch.learn import takeover as _takeover  # noqa: F401  (registers --device takeover)
     from fetch.tasks import ENV_IDS
+    from fetch.teleop.config import RENDER_CHOICES
     from fetch.teleop.registry import DEVICE_NAMES, KINDS
-    from fetch.teleop.session import RENDER_CHOICES
 
     p.add_argument("--env", default="Bin-pick-v2", metavar="ID",
                    help=f"the task (default Bin-pick-v2), one of: {', '.join(ENV_IDS)}")

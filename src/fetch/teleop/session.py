@@ -11,94 +11,17 @@ from typing import Any, Protocol, cast
 import gymnasium as gym
 import numpy as np
 
-import fetch
 from fetch._progress import say
 from fetch.dataset.background import MAX_QUEUED
 from fetch.dataset.episode import Demo, EpisodeBuffer
-from fetch.dataset.formats import check_format, open_writer, recorded_layout
-from fetch.errors import FetchError, UnknownNameError
-from fetch.rendering import check_camera, check_camera_list, check_image_size
+from fetch.dataset.formats import open_writer, recorded_layout
+from fetch.errors import FetchError
+from fetch.rendering import check_camera
 from fetch.stopping import Stopped, acting_on_stop, polled, raise_if_stopped, signals_held
-from fetch.tasks import MAX_STEPS
+from fetch.teleop.config import CollectConfig
 from fetch.teleop.devices import Command, Device
 from fetch.teleop.registry import device_kind
 from fetch.timing import Clock
-
-RENDER_CHOICES = ("auto", "human", "rgb_array", "none")
-
-
-MIN_HZ, MAX_HZ = 0.1, 10_000.0
-"""[Hz] the paced control rates `--control-hz` takes (0: unpaced); a person drives at 25."""
-MAX_SEED = 2**62
-"""The largest --seed: seed + attempt number must fit the 64-bit integer a demo stores."""
-
-
-@dataclasses.dataclass(frozen=True)
-class CollectConfig:
-    """A collection session's settings (the `gym-fetch collect` flags)."""
-
-    env_id: str
-    out: str = "demos"
-    episodes: int = 0
-    """Demos to save in this session; 0: until quit."""
-    max_steps: int = 500
-    """Steps per attempt; replaces the env's 50-step TimeLimit."""
-    seed: int = 0
-    """Attempt k of the dataset resets with seed + k."""
-    control_hz: float | None = None
-    """[Hz] None: the env's real-time rate (25) for a person, as fast as possible for expert/scripted."""
-    success_hold_steps: int = 10
-    stop_on_success: bool = True
-    ignore_env_done: bool = False
-    """Keep going after `terminated` (never after the --max-steps truncation)."""
-    keep_failures: bool = False
-    device: str = "gamepad"
-    render: str = "auto"
-    format: str = "hdf5"
-    reward_type: str = "sparse"
-    cameras: tuple[str, ...] = ()
-    image_size: int = 84
-    verbose: bool = False
-
-    def __post_init__(self) -> None:
-        if self.env_id not in fetch.ENV_IDS:
-            raise UnknownNameError("env", self.env_id, fetch.ENV_IDS)
-        object.__setattr__(self, "device", device_kind(self.device).name)  # an alias ("xbox") by its name
-        check_format(self.format, self.cameras)
-        if self.render not in RENDER_CHOICES:
-            raise UnknownNameError("render mode", self.render, RENDER_CHOICES)
-        for name, value, low in (("--episodes", self.episodes, 0), ("--max-steps", self.max_steps, 1),
-                                 ("--success-hold-steps", self.success_hold_steps, 1)):
-            if value < low:
-                raise FetchError(f"{name} must be at least {low}, got {value}")
-        if self.max_steps > MAX_STEPS:
-            raise FetchError(f"--max-steps must be at most {MAX_STEPS} (over an hour at 25 Hz), got {self.max_steps}")
-        check_image_size(self.image_size, "--image-size")
-        check_camera_list(self.cameras)
-        if not str(self.out).strip():
-            raise FetchError("--out must name a directory (it is empty); e.g. --out demos/my_task")
-        if not 0 <= self.seed <= MAX_SEED:
-            raise FetchError(f"--seed must be a whole number from 0 to 2**62 (every demo stores its reset seed as a "
-                             f"64-bit integer), got {self.seed}")
-        if self.control_hz is not None and not (self.control_hz == 0 or MIN_HZ <= self.control_hz <= MAX_HZ):
-            raise FetchError(f"--control-hz must be 0 (as fast as possible) or a rate from {MIN_HZ:g} to "
-                             f"{MAX_HZ:g} Hz, got {self.control_hz}")
-
-    @property
-    def human(self) -> bool:
-        """A person drives the device: real-time pacing, and a window when there is a display."""
-        return device_kind(self.device).human
-
-    def rate(self, env_dt: float) -> float:
-        """[Hz] the control rate to keep; 0 means as fast as possible."""
-        if self.control_hz is not None:
-            return self.control_hz
-        return 1.0 / env_dt if self.human or self.render == "human" else 0.0
-
-    def settings(self) -> dict[str, Any]:
-        """What a resumed session must match."""
-        return {"max_steps": self.max_steps, "success_hold_steps": self.success_hold_steps,
-                "stop_on_success": self.stop_on_success, "ignore_env_done": self.ignore_env_done}
 
 
 @dataclasses.dataclass
@@ -221,7 +144,7 @@ class Session:
         # The loop records states only: the writer renders `--cameras` images from them in another
         # process once the demo is saved, so images cost the control loop nothing.
         self.buffer = EpisodeBuffer(recorded_layout(self.env),
-                                    capacity=min(config.max_steps, 1024))
+                                    capacity=min(config.attempt_steps, 1024))
         self.clock = Clock(config.rate(self.base.dt))
         self.attempts: list[Attempt] = []
         self._gripper_closed = False
@@ -369,7 +292,7 @@ class Session:
             return
         self.display.show(HudState(
             env_id=self.config.env_id, attempt=number, saved=self.writer.saved, target=self.config.episodes,
-            step=step, max_steps=self.config.max_steps, success=info.get("is_success", 0.0) >= 1.0, held=held,
+            step=step, max_steps=self.config.attempt_steps, success=info.get("is_success", 0.0) >= 1.0, held=held,
             hold_needed=self.config.success_hold_steps, gripper_closed=self._gripper_closed,
             precision=command.precision,
             status=command.status or (f"saving: {self.writer.behind} queued" if self.writer.behind else ""),
