@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import pathlib
@@ -203,7 +204,22 @@ def test_cli_export_bad_input_is_a_clear_error(dataset: pathlib.Path, minari_roo
     assert "needs --out" in capsys.readouterr().err
     assert main(["export", str(dataset), "--to", "minari", "--out", str(tmp_path)]) == 2
     assert "--out is for --to npz" in capsys.readouterr().err
+    assert main(["export", str(dataset), "--to", "npz", "--out", str(tmp_path / "npz"), "--author", "me"]) == 2
+    assert "--author is for --to minari" in capsys.readouterr().err  # was silently dropped
+    assert not (tmp_path / "npz").exists()
     assert not any(minari_root.rglob("main_data.hdf5"))  # nothing half-written
+
+
+def test_every_exporter_reads_options_the_subcommand_has() -> None:
+    """The registry and the parser agree: every option an exporter reads or needs is one of `export`'s."""
+    from fetch.cli import _parser
+    from fetch.dataset.exporters import EXPORTERS
+
+    export = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["export"]
+    dests = {a.dest for a in export._actions}
+    assert {e.name for e in EXPORTERS} == set(next(a for a in export._actions if a.dest == "to").choices)
+    for e in EXPORTERS:
+        assert set(e.reads) | set(e.needs) <= dests, e.name
 
 
 def test_missing_minari_names_the_extra(dataset: pathlib.Path, minari_root: pathlib.Path,

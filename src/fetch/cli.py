@@ -210,7 +210,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--valid", type=float, default=0.1, help="fraction of successful demos for validation (default 0.1)")
     s.add_argument("--seed", type=int, default=0, help="seed of the random assignment (default 0)")
     s.set_defaults(run=run_split)
-    from fetch.dataset.export import add_export_parser  # minari is imported only when it runs
+    from fetch.dataset.exporters import add_export_parser  # minari is imported only when it runs
     from fetch.dataset.view import add_view_parser  # PyAV and the renderer are imported only when it runs
     from fetch.generate.cli import add_generate_parser  # the generator is imported only when it runs
     from fetch.learn.cli import add_learn_parsers  # torch is imported only when they run

@@ -1,8 +1,8 @@
-"""Exports of a dataset: a Minari dataset (`minari.load_dataset` opens it) and the seed's per-demo npz files."""
+"""Exports of a dataset: a Minari dataset (`minari.load_dataset` opens it), the seed's per-demo npz files and
+a LeRobotDataset (`lerobot_writer.py`). The `export` subcommand and its registry of formats: `exporters.py`."""
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import os
 import pathlib
@@ -17,11 +17,10 @@ from fetch.dataset import npz, schema
 from fetch.dataset.dirs import recover_replaced, replacing_dir, require_apart
 from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
-from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset
+from fetch.dataset.reader import Dataset, open_dataset
 from fetch.dataset.validation import require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError, install_hint
 
-FORMATS = ("minari", "npz", "lerobot")
 SELECTIONS = ("successful", "all")
 """`--demos` choices besides the masks a file holds (train, valid, failed, ...)."""
 MINARI_INSTALL = install_hint("minari")
@@ -321,79 +320,3 @@ def export_lerobot(ds_path: str | os.PathLike[str], repo_id: str, out: str | os.
                                                image_size=image_size, fps=rate, force=force,
                                                workers=min(workers or default_workers(), len(chosen)))
     return Exported(path=written.path, demos=tuple(chosen), steps=written.frames)
-
-
-def add_export_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """The `export` subcommand."""
-    p = sub.add_parser("export", help="write a dataset as a Minari dataset, a LeRobot dataset or as the seed's "
-                                      "per-demo npz files")
-    p.add_argument("file", help=FILE_HELP)
-    p.add_argument("--to", required=True, choices=FORMATS,
-                   help="minari: a local Minari dataset; npz: the files `collect --format npz` writes; lerobot: a "
-                        "LeRobotDataset v3.0 (parquet + mp4)")
-    p.add_argument("--dataset-id", default=None, metavar="ID",
-                   help="minari: (namespace/)name-v<version>, default fetch/<task>/<device>-v0 (with --demos other "
-                        "than successful: fetch/<task>/<device>-<demos>-v0); it is written "
-                        "under $MINARI_DATASETS_PATH (default ~/.minari/datasets)")
-    p.add_argument("--out", default=None, metavar="DIR",
-                   help="npz: the directory for the files; lerobot: the dataset's root (default "
-                        "$HF_LEROBOT_HOME/<repo-id>, where LeRobotDataset(repo_id) looks)")
-    p.add_argument("--repo-id", default=None, metavar="NAME", help="lerobot: the dataset's namespace/name")
-    p.add_argument("--cameras", default=None, metavar="LIST",
-                   help="lerobot: cameras to render as videos, comma-separated (default: the recorded ones, else "
-                        "front,wrist; none: no video)")
-    p.add_argument("--image-size", type=int, default=None, metavar="PX",
-                   help="lerobot: video width and height (default: the recorded images', else 128)")
-    p.add_argument("--fps", type=float, default=None, help="lerobot: frames per second (the control rate, 25)")
-    p.add_argument("--demos", default="successful", metavar="WHICH",
-                   help="successful (default), all, or a mask of the file (train, valid, failed)")
-    p.add_argument("--force", action="store_true",
-                   help="replace a Minari dataset of the same id, or the directory at --out (npz, LeRobot); each is "
-                        "built beside and swapped in whole")
-    g = p.add_argument_group("minari metadata")
-    g.add_argument("--author", default=None, help="the dataset's author (default: none)")
-    g.add_argument("--author-email", default=None, help="the author's e-mail address (default: none)")
-    g.add_argument("--code-permalink", default=None,
-                   help="a link to the code that made the data (default: none)")
-    g.add_argument("--description", default=None, help="default: what the demos are and where they came from")
-    p.set_defaults(run=run_export)
-
-
-def run_export(args: argparse.Namespace) -> int:
-    if args.to == "lerobot":
-        return _run_lerobot(args)
-    lerobot_only = [f for f in ("repo_id", "cameras", "image_size", "fps") if getattr(args, f) is not None]
-    if lerobot_only:
-        raise FetchError(f"--{lerobot_only[0].replace('_', '-')} is for --to lerobot")
-    if args.to == "npz":
-        if args.out is None:
-            raise FetchError("--to npz needs --out DIR, the directory for the files")
-        if args.dataset_id is not None:
-            raise FetchError("--dataset-id is for --to minari; --to npz writes into --out DIR")
-        done = export_npz(args.file, args.out, demos=args.demos, force=args.force)
-        print(f"wrote {len(done.demos)} demo(s), {done.steps} steps, as npz files in {done.path}")
-        return 0
-    if args.dataset_id is not None and not args.dataset_id.strip():
-        raise FetchError("--dataset-id is empty; give one such as fetch/reach/expert-v0, or leave it out for the "
-                         "default")
-    if args.out is not None:
-        raise FetchError(f"--out is for --to npz; a Minari dataset is written under $MINARI_DATASETS_PATH "
-                         f"(now {minari_root()})")
-    done = export_minari(args.file, args.dataset_id, demos=args.demos, force=args.force, author=args.author,
-                         author_email=args.author_email, code_permalink=args.code_permalink,
-                         description=args.description)
-    dataset_id = done.path.relative_to(minari_root()).as_posix()
-    print(f"wrote {len(done.demos)} demo(s), {done.steps} steps, as Minari dataset {dataset_id} in {done.path}")
-    return 0
-
-
-def _run_lerobot(args: argparse.Namespace) -> int:
-    if args.repo_id is None:
-        raise FetchError("--to lerobot needs --repo-id NAME (namespace/name, e.g. me/fetch_drawer_open)")
-    if args.dataset_id is not None:
-        raise FetchError("--dataset-id is for --to minari; --to lerobot names the dataset with --repo-id")
-    cameras = None if args.cameras is None else [c for c in args.cameras.split(",") if c and c != "none"]
-    done = export_lerobot(args.file, args.repo_id, args.out, demos=args.demos, cameras=cameras,
-                          image_size=args.image_size, fps=args.fps, force=args.force)
-    print(f"wrote {len(done.demos)} demo(s), {done.steps} frames, as LeRobotDataset {args.repo_id} in {done.path}")
-    return 0
