@@ -502,3 +502,11 @@ def test_a_full_stdout_is_one_line_and_the_work_is_done(plain: pathlib.Path, tmp
             assert len(ds.masks()["valid"]) >= 1
     if tool == "export npz":
         assert len(list((tmp_path / "npz").glob("*.npz"))) == 3
+
+
+def test_every_recording_format_has_a_reader() -> None:
+    """`info` and `replay` read through `open_recording`: each format `collect --format` writes has a reader."""
+    from fetch.dataset.formats import FORMATS
+    from fetch.dataset.recordings import READERS
+
+    assert {r.format for r in READERS} == set(FORMATS)

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import collections
-import pathlib
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -78,38 +76,11 @@ def run_collect(args: argparse.Namespace) -> int:
 
 
 def run_info(args: argparse.Namespace) -> int:
-    from fetch.dataset import open_dataset, summarize, validate
-    from fetch.dataset.habits import dataset_flags, describe_flags
-    from fetch.dataset.npz import npz_files
+    from fetch.dataset.recordings import open_recording
 
-    if files := npz_files(args.file):
-        return _info_npz(args.file, files)
-
-    with open_dataset(args.file) as ds:
-        s = summarize(ds)
-        low, high, mean = s.lengths
-        print(f"{s.path}\n  env         {s.env_id} {ds.env_kwargs}")
-        print(f"  demos       {s.demos} ({s.successful} successful), {s.steps} steps; length min {low} "
-              f"mean {mean:.1f} max {high}")
-        print("  masks       " + ", ".join(f"{k} {v}" for k, v in sorted(s.masks.items())))
-        print(f"  actions     in [{s.action_range[0]:.3f}, {s.action_range[1]:.3f}]")
-        print("  devices     " + (", ".join(f"{k} {v}" for k, v in sorted(s.devices.items())) or "-"))
-        print(f"  control     {s.achieved_hz:.1f} Hz achieved (mean over demos; 0: unpaced)")
-        print(f"  cameras     {', '.join(s.cameras) or 'none'}")
-        demos, taken, person, steps = s.corrections
-        if demos:
-            print(f"  takeovers   {demos} demos recorded with a person ready to take over: {taken} takeovers, "
-                  f"{person} of their {steps} steps ({100 * person / max(steps, 1):.0f} %) driven by the person")
-        print(f"  settings    {ds.settings}")
-        print("  versions    " + ", ".join(f"{k} {v}" for k, v in s.versions.items()))
-        for line in describe_flags(dataset_flags(ds), s.demos):
-            print(line if line.startswith("  ") else "  " + line)
-        if unlisted := ds.unlisted():
-            print(f"  unlisted    {len(unlisted)} demo file(s) in {unlisted[0].parent.name}/ that the index does not "
-                  f"list ({unlisted[0].stem}{'..' + unlisted[-1].stem if len(unlisted) > 1 else ''}): a session "
-                  "stopped before it rewrote the index; the next `gym-fetch collect` on this directory checks "
-                  "them and takes them in")
-        problems = validate(ds)
+    with open_recording(args.file) as recording:
+        print("\n".join(recording.summary()))
+        problems = recording.problems()
     return _verdict(problems)
 
 
@@ -122,27 +93,6 @@ def _verdict(problems: list[str]) -> int:
         return 1
     print("valid")
     return 0
-
-
-def _info_npz(path: str, files: list[pathlib.Path]) -> int:
-    """`info` on the seed's per-demo files (`collect --format npz`)."""
-    from fetch.dataset.npz import load_npz, problems
-
-    demos = [load_npz(f) for f in files]
-    envs = sorted({str(d.metadata["env_id"]) for d in demos})
-    lengths = [d.steps for d in demos]
-    devices = collections.Counter(str(d.metadata.get("device", "?")) for d in demos)
-    successful = sum(bool(d.metadata.get("successful", d.metadata.get("success", False))) for d in demos)
-    print(f"{path} (npz: the seed's per-demo files)\n  env         {', '.join(envs)}")
-    print(f"  demos       {len(demos)} ({successful} successful), {sum(lengths)} steps; length min {min(lengths)} "
-          f"mean {sum(lengths) / len(lengths):.1f} max {max(lengths)}")
-    print("  devices     " + ", ".join(f"{k} {v}" for k, v in sorted(devices.items())))
-    seeds = ", ".join(str(d.metadata["seed"]) for d in demos[:20])
-    print(f"  seeds       {seeds}" + (" ..." if len(demos) > 20 else ""))
-    found = [p for d in demos for p in problems(d)]
-    if len(envs) > 1:
-        found.append(f"the files are of {len(envs)} envs: {', '.join(envs)}")
-    return _verdict(found)
 
 
 def run_render_obs(args: argparse.Namespace) -> int:

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
 import math
 import pathlib
@@ -153,31 +152,22 @@ def run_replay(args: argparse.Namespace) -> int:
 
 def run_video(args: argparse.Namespace) -> int:
     from fetch._progress import progress
-    from fetch.dataset import open_dataset
     from fetch.dataset.frames import StateRenderer
-    from fetch.dataset.validation import require_valid
+    from fetch.dataset.recordings import open_recording
     from fetch.dataset.video import check_video_path, write_video
     from fetch.errors import FetchError
 
     if args.fps is not None and not (math.isfinite(args.fps) and args.fps > 0):
         raise FetchError(f"--fps must be a positive number of frames per second, got {args.fps}")
     out = check_video_path(args.video, args.size, args.size)
-    with contextlib.ExitStack() as stack:
-        if demos := _npz_demos(args.file, args.demo):
-            env_id, env_kwargs = str(demos[0].metadata["env_id"]), {}
-            states_of = {d.path.stem: d.arrays["states"] for d in demos}
-        else:
-            ds = stack.enter_context(open_dataset(args.file))
-            names = ds.select(args.demo)
-            require_valid(ds, names, images=False)
-            env_id, env_kwargs = ds.env_id, ds.env_kwargs
-            states_of = {name: ds.demo(name)["states"] for name in names}
-        with StateRenderer(env_id, env_kwargs, args.size, args.size) as renderer:
+    with open_recording(args.file, args.demo) as recording:
+        recording.require_valid()
+        with StateRenderer(recording.env_id, recording.env_kwargs, args.size, args.size) as renderer:
             renderer.check_camera(args.camera)
             fps = args.fps or 1.0 / renderer.env.dt
-            for name, saved in states_of.items():
-                path = out if len(states_of) == 1 else out.with_name(f"{out.stem}_{name}{out.suffix}")
-                states = saved[()]
+            for name in recording.names:
+                path = out if len(recording.names) == 1 else out.with_name(f"{out.stem}_{name}{out.suffix}")
+                states = recording.states(name)
                 frames = (renderer.frame(state, args.camera) for state in states)
                 count = write_video(path, progress(frames, len(states), f"video {name}", unit="frames"), fps,
                                     args.size, args.size)
@@ -186,52 +176,24 @@ def run_video(args: argparse.Namespace) -> int:
     return 0
 
 
-def _npz_demos(path: str, demo: str | None) -> list[Any]:
-    """The seed-format files `path` names (all, or the one `--demo` names), read; [] when `path` is an
-    HDF5 dataset."""
-    from fetch.dataset.npz import load_npz, npz_files
-    from fetch.errors import FetchError
-
-    files = npz_files(path)
-    if files and demo is not None:
-        chosen = [f for f in files if demo in (f.stem, f.name)]
-        if not chosen:
-            raise FetchError(f"no demo file {demo!r}; this directory has {', '.join(f.stem for f in files[:5])}"
-                             + (" ..." if len(files) > 5 else ""))
-        files = chosen
-    return [load_npz(f) for f in files]
-
-
 def run_check(args: argparse.Namespace) -> int:
-    with contextlib.ExitStack() as stack:
-        return _check(args, stack)
-
-
-def _check(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
-    import gymnasium
-
-    import fetch  # noqa: F401
     from fetch._progress import progress
-    from fetch.dataset import open_dataset
-    from fetch.dataset.npz import check_npz
-    from fetch.dataset.replay import check_demo, make_replay_env, other_model
-    from fetch.dataset.validation import require_valid
+    from fetch.dataset.recordings import open_recording
 
-    if demos := _npz_demos(args.file, args.demo):
-        env = gymnasium.make(str(demos[0].metadata["env_id"])).unwrapped
-        checks = (check_npz(d, env) for d in demos)
-        names = [d.path.name for d in demos]
-    else:
-        ds = stack.enter_context(open_dataset(args.file))
-        names = ds.select(args.demo)
-        require_valid(ds, names, images=False)
-        env = make_replay_env(ds)
-        if note := other_model(ds, env):
+    with open_recording(args.file, args.demo) as recording:
+        recording.require_valid()
+        names = recording.names
+        env = recording.replay_env()
+        if note := recording.note(env):
             print(note)
-        checks = (check_demo(ds, name, env) for name in names)
+        return _report(args, names, progress((recording.check(name, env) for name in names), len(names), "replay"),
+                       env)
+
+
+def _report(args: argparse.Namespace, names: list[str], checks: Any, env: Any) -> int:
     failures = 0
     largest: tuple[float, str] = (0.0, "")
-    for r in progress(checks, len(names), "replay"):
+    for r in checks:
         ok = r.exact and r.success_recorded == r.success_replayed
         failures += not ok
         dev = r.largest
