@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import sys
 
-from fetch.cli import collect_main
+from fetch.collect import collect_main
 
 if __name__ == "__main__":
     raise SystemExit(collect_main(sys.argv[1:], prog="collect_fetch_demo.py"))

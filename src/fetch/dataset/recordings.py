@@ -1,4 +1,5 @@
-"""A recording, whatever format `collect` wrote it in: one reader per format behind one interface.
+"""A recording, whatever format `collect` wrote it in: one reader per format behind one interface; and
+`gym-fetch info`.
 
 `info` and `replay` open a path with `open_recording` and ask the `Recording` what they need (a
 summary, its problems, its demos' states, a bit-for-bit check of each), never which format it is.
@@ -7,6 +8,7 @@ A new format is a `Recording` class here and one line in `READERS`.
 
 from __future__ import annotations
 
+import argparse
 import collections
 import contextlib
 import dataclasses
@@ -18,7 +20,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from fetch.dataset import npz
-from fetch.dataset.reader import Dataset, open_dataset
+from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset
 from fetch.dataset.replay import ReplayCheck, check_demo, make_replay_env, other_model
 from fetch.dataset.validation import require_valid, validate
 from fetch.errors import FetchError
@@ -197,3 +199,27 @@ def open_recording(path: str | os.PathLike[str],
     """The recording at `path`, in whichever format it is, with `demo` (an index or name; None: all) chosen."""
     p = pathlib.Path(path)
     return next(r for r in READERS if r.holds(p)).open(p, demo)
+
+
+def add_info_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    i = sub.add_parser("info", help="summarise and validate a dataset; non-zero exit if it is inconsistent")
+    i.add_argument("file", help=FILE_HELP)
+    i.set_defaults(run=run_info)
+
+
+def run_info(args: argparse.Namespace) -> int:
+    with open_recording(args.file) as recording:
+        print("\n".join(recording.summary()))
+        problems = recording.problems()
+    return _verdict(problems)
+
+
+def _verdict(problems: list[str]) -> int:
+    """Print `valid`, or the problems (the first 50); the exit status of `info`."""
+    if problems:
+        print(f"INVALID: {len(problems)} problem(s):")
+        for p in problems[:50]:
+            print(f"  - {p}")
+        return 1
+    print("valid")
+    return 0

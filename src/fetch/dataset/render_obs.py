@@ -8,6 +8,7 @@ failed or interrupted run leaves the dataset as it was.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import os
 import pathlib
@@ -21,7 +22,7 @@ import numpy as np
 from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.durable import Rewrites, editing
-from fetch.dataset.reader import open_dataset, resolve
+from fetch.dataset.reader import FILE_HELP, open_dataset, resolve
 from fetch.dataset.validation import require_valid
 from fetch.errors import FetchError
 from fetch.rendering import check_image_size
@@ -117,3 +118,18 @@ def describe(report: RenderReport, camera: str, path: str) -> str:
     return (f"rendered {camera} for {report.demos} demo(s): {report.frames} frames in {report.seconds:.1f} s "
             f"({report.frames_per_second:.0f} frames/s, {report.workers} worker process(es)) into {path}")
 
+
+def add_render_obs_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    o = sub.add_parser("render-obs", help="add a camera's images to every demo, rendered from the saved states")
+    o.add_argument("file", help=FILE_HELP)
+    o.add_argument("--camera", required=True, help="a camera of the env, e.g. front or wrist")
+    o.add_argument("--size", type=int, default=84, help="image width and height [px] (default 84)")
+    o.add_argument("--workers", type=int, default=None, help="render processes (default: one per core)")
+    o.add_argument("--overwrite", action="store_true", help="render a camera the dataset already has again")
+    o.set_defaults(run=run_render_obs)
+
+
+def run_render_obs(args: argparse.Namespace) -> int:
+    report = render_obs(args.file, args.camera, args.size, workers=args.workers, overwrite=args.overwrite)
+    print(describe(report, args.camera, args.file))
+    return 0

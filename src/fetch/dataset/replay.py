@@ -12,7 +12,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fetch.dataset.reader import Dataset
+from fetch.dataset.reader import FILE_HELP, Dataset
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,10 +125,10 @@ def resimulate(name: str, env: Any, seed: int, actions: np.ndarray, states: np.n
                        success_recorded=success_recorded, success_replayed=success)
 
 
-def add_replay_parser(sub: argparse._SubParsersAction, file_help: str) -> None:  # type: ignore[type-arg]
+def add_replay_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     r = sub.add_parser("replay", help="re-simulate demos and compare them with what was recorded, or render "
                                       "them to video")
-    r.add_argument("file", help=file_help)
+    r.add_argument("file", help=FILE_HELP)
     r.add_argument("--demo", default=None, help="a demo index or name, e.g. 3 or demo_3 (default: all)")
     r.add_argument("--check", action="store_true",
                    help="compare observations and states bit for bit (what replay does without --video)")
