@@ -10,6 +10,7 @@ import subprocess
 import sys
 
 import h5py
+import numpy as np
 import pytest
 
 from fetch.cli import main
@@ -70,39 +71,51 @@ def test_the_valid_dataset_still_reads(reach_demos: pathlib.Path) -> None:
     assert main(["info", str(reach_demos)]) == 0
 
 
-def _orphan(d: pathlib.Path, env: str, stub: bool = False) -> pathlib.Path:
+def _orphan(d: pathlib.Path, env: str, case: str = "demo") -> pathlib.Path:
     """A file where the next session would find a demo a kill left out of the index: `episodes/demo_2.hdf5`
-    holding group demo_2, taken from a demo of `env` (or a stub with three attributes)."""
+    holding group demo_2, taken from a demo of `env`; or, by `case`, a stub with three attributes, a demo
+    file whose group keeps its old name (demo_0), an HDF5 file without the group, a text file, an empty file."""
     src = pathlib.Path(d.parent / f"src-{env}")
     if not src.exists():
         assert main(["collect", "--env", env, "--device", "expert", "--episodes", "1", "--render", "none",
                      "--max-steps", "50", "--out", str(src)]) == 0
     path = d / "episodes" / "demo_2.hdf5"
+    if case in ("text", "empty"):
+        path.write_text("notes I keep here\n" if case == "text" else "")
+        return path
     with h5py.File(src / "episodes" / "demo_0.hdf5", "r") as f, h5py.File(path, "w") as g:
-        if stub:
+        if case == "stub":
             group = g.create_group("demo_2")
             group.attrs.update({"num_samples": 3, "success": True, "attempt": 10**9})
+        elif case == "renamed":
+            f.copy(f["demo_0"], g, "demo_0")
+        elif case == "no-group":
+            g.create_dataset("something", data=np.arange(3))
         else:
             f.copy(f["demo_0"], g, "demo_2")
             g["demo_2"].attrs["attempt"] = 7
     return path
 
 
-@pytest.mark.parametrize("case", ["Push-v2", "stub"])
+@pytest.mark.parametrize(("env", "case"), [("Push-v2", "demo"), ("Push-v2", "stub"), ("Reach-v2", "renamed"),
+                                          ("Push-v2", "no-group"), ("Push-v2", "text"), ("Push-v2", "empty")])
 def test_the_collector_takes_in_only_a_demo_of_its_own_dataset(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
-                                                               case: str, capsys: pytest.CaptureFixture[str]) -> None:
+                                                               env: str, case: str,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
     """A file that is not a demo of this dataset (another env's, a stub) is refused, naming it, instead of
-    being adopted (every tool then refused the dataset; a stub's attempt shifted every later seed)."""
+    being adopted (every tool then refused the dataset; a stub's attempt shifted every later seed); one that
+    is no demo at all (text, empty, a demo file under another group name) is refused too, instead of being
+    overwritten by the next demo."""
     d = tmp_path / "d"
     shutil.copytree(reach_demos, d)
-    path = _orphan(d, "Push-v2", stub=case == "stub")
+    path = _orphan(d, env, case)
     capsys.readouterr()
-    before = (d / "demos.hdf5").read_bytes()
+    before, held = (d / "demos.hdf5").read_bytes(), path.read_bytes()
     assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "1", "--render", "none",
                  "--out", str(d)]) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]  # after the "collecting ..." banner
     assert err.startswith("gym-fetch collect: error: ") and str(path) in err and "not a demo of this dataset" in err
-    assert (d / "demos.hdf5").read_bytes() == before and path.exists()
+    assert (d / "demos.hdf5").read_bytes() == before and path.read_bytes() == held
 
 
 def test_the_collector_takes_in_a_demo_a_kill_left_out_of_the_index(reach_demos: pathlib.Path,

@@ -170,11 +170,19 @@ class DatasetWriter(BackgroundWriter):
             if not path.is_file():
                 raise DatasetError(f"{path} is not a regular file; a demo file is an HDF5 file. Move it away "
                                    "(nothing was written)")
+            # A demo file is renamed into place whole (`write_demo_file`): one that cannot be read, or
+            # lacks its group, was put there by something else, and saving demo_N would overwrite it.
             try:
                 with h5py.File(path, "r") as f:
+                    if not isinstance(f.get(name), h5py.Group):
+                        raise DatasetError(f"{path} is not a demo of this dataset (it has no group {name!r}), so "
+                                           "it is not taken in, and the next demo would overwrite it; move it away "
+                                           "(nothing was written)")
                     samples, success, attempt = self._check_orphan(path, name, f)
-            except (OSError, KeyError):
-                continue  # not a complete demo file; it was never listed, so nothing is lost
+            except OSError as e:
+                raise DatasetError(f"{path} is not a demo of this dataset (not an HDF5 file: "
+                                   f"{' '.join(str(e).split())[:120]}), so it is not taken in, and the next demo "
+                                   "would overwrite it; move it away (nothing was written)") from e
             entry = _Entry(name, samples, success, self._mask_for(success))
             self.attempts = max(self.attempts, attempt + 1)
             self._entries.append(entry)
