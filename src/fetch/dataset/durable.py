@@ -54,6 +54,8 @@ def editing(index: pathlib.Path) -> Iterator[None]:
     if (index.parent / schema.EPISODES_DIR).is_dir():
         handle = lock_directory(index.parent, "run it when the collector has finished")
     else:
+        if not index.exists():  # no lock file left behind for a dataset that is not there
+            raise DatasetError(f"{index}: no such file")
         handle = _lock_file(index.with_name(f".{index.name}.lock"), index)
     try:
         finish_rewrites(index)

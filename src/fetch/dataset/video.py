@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from fetch.errors import FetchError, UnknownNameError, install_hint
+from fetch.rendering import check_image_size
 
 FORMATS = (".mp4", ".gif")
 
@@ -40,7 +41,9 @@ def _gif_indices(frame: np.ndarray) -> np.ndarray:
 
 
 def check_video_path(path: str | os.PathLike[str], width: int, height: int) -> pathlib.Path:
-    """The output path, after checking its format and the frame size it allows (before any work)."""
+    """The output path, after checking its format and the frame size (before any work)."""
+    check_image_size(width, "--size")
+    check_image_size(height, "--size")
     p = pathlib.Path(path)
     suffix = p.suffix.lower()
     if suffix not in FORMATS:

@@ -23,6 +23,7 @@ from fetch.dataset.habits import FLAG_KINDS, dataset_flags
 from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, open_dataset, runs
 from fetch.dataset.validation import validate
 from fetch.errors import DatasetError, FetchError
+from fetch.rendering import check_image_size
 
 SIGNIFICANT = 5
 """Digits kept of each plotted value (the page's data files stay small)."""
@@ -123,7 +124,8 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
     from fetch.dataset.video import check_video_path
     from fetch.dataset.view_page import data_script, page
 
-    if size <= 0 or size % 2:
+    check_image_size(size, "--size")
+    if size % 2:
         raise FetchError(f"--size must be an even number of pixels (H.264 video), got {size}")
     require_apart(out, [ds_path])
     with open_dataset(ds_path) as ds:
