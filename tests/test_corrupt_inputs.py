@@ -88,6 +88,19 @@ def cut_model_xml(root: pathlib.Path) -> None:
         f["data"].attrs["model_xml"] = f["data"].attrs["model_xml"][:5000]
 
 
+def push_model(with_hash: bool) -> Callable[[pathlib.Path], None]:
+    """Another task's model stored as the dataset's (and, `with_hash`, that model's hash too)."""
+    def corrupt(root: pathlib.Path) -> None:
+        import gymnasium as gym
+
+        push = gym.make("Push-v2").unwrapped
+        with h5py.File(root / INDEX, "r+") as f:
+            f["data"].attrs["model_xml"] = push.model_xml()
+            if with_hash:
+                f["data"].attrs["model_hash"] = push.model_hash()
+    return corrupt
+
+
 @dataclasses.dataclass(frozen=True)
 class Case:
     corrupt: Callable[[pathlib.Path], None]
@@ -144,6 +157,13 @@ CASES: dict[str, Case] = {
     "huge_expert_action": Case(edit_demo(replace("expert_actions", lambda a: a * 1e6)), "expert_actions"),
     "nan_reward": Case(edit_demo(replace("rewards", lambda a: np.where(np.arange(len(a)) == 3, np.nan, a))),
                        "rewards"),
+    "rewards_5": Case(edit_demo(replace("rewards", lambda a: np.full_like(a, 5.0))), "rewards"),
+    "reward_flipped": Case(edit_demo(replace("rewards", lambda a: np.where(np.arange(len(a)) == 3, -1.0 - a, a))),
+                           r"rewards\[3\]"),
+    "env_kwargs_dense": Case(edit_env_args(lambda a: json.dumps({**a, "env_kwargs": {"reward_type": "dense"}})),
+                             "reward", demo=None),
+    "model_xml_of_push": Case(push_model(with_hash=False), "model_xml", demo=None),
+    "model_xml_and_hash_of_push": Case(push_model(with_hash=True), "model_xml", demo=None),
     "is_success_7": Case(edit_demo(replace("is_success", lambda a: np.full_like(a, 7))), "is_success"),
     "terminated_always": Case(edit_demo(replace("terminated", lambda a: np.ones_like(a))), "terminated"),
 }

@@ -3,6 +3,7 @@ lists), and the check every tool makes before it uses a file (`require_valid`)."
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import h5py
@@ -35,10 +36,22 @@ def header_problems(ds: Dataset) -> list[str]:
                             f"{one_line(e)}")
         else:
             state_size = int(np.asarray(env.unwrapped.get_state()).size)
+            here = env.unwrapped.model_xml()
+            names = _element_names(here)
+            same_model = ds.data_attrs.get("model_hash") in (env.unwrapped.model_hash(),
+                                                               env.unwrapped.legacy_model_hash())
             env.close()
             if state_size != ds.layout.state_size:
                 problems.append(f"data.attrs['layout'] has state_size {ds.layout.state_size}, but {ds.env_id} "
                                 f"states have {state_size} values")
+            recorded = _element_names(ds.data_attrs.get("model_xml"))
+            if same_model and recorded is not None and _portable(ds.data_attrs["model_xml"]) != _portable(here):
+                problems.append(f"data.attrs['model_xml'] is not the model data.attrs['model_hash'] names (this "
+                                f"install's {ds.env_id} model)")
+            elif recorded is not None and names is not None and recorded != names:
+                other = sorted((recorded - names) | (names - recorded))
+                problems.append(f"data.attrs['model_xml'] is not a model of {ds.env_id}: it names other bodies, "
+                                f"joints or sites ({', '.join(other[:4])}{' ...' if len(other) > 4 else ''})")
     for key, kind in schema.DATA_ATTR_KINDS.items():
         if key in ds.data_attrs or key == "total":
             problem = schema.kind_problem(ds.data_attrs.get(key), kind)
@@ -52,6 +65,24 @@ def header_problems(ds: Dataset) -> list[str]:
     except Exception as e:  # noqa: BLE001 (mujoco raises ValueError or TypeError, by version)
         problems.append(f"data.attrs['model_xml'] is not the model's MJCF (corrupt or missing: {one_line(e)[:200]})")
     return problems
+
+
+def _portable(xml: str) -> str:
+    """MJCF without the install's asset directories (the same model installed elsewhere names others)."""
+    return re.sub(r' (?:meshdir|texturedir)="[^"]*"', "", xml)
+
+
+def _element_names(xml: Any) -> frozenset[str] | None:
+    """The named bodies, joints and sites of an MJCF model (what tells one task's scene from another's);
+    None if it does not parse (`header_problems` says so)."""
+    import mujoco
+
+    try:
+        spec = mujoco.MjSpec.from_string(xml)
+    except Exception:  # noqa: BLE001 (mujoco raises ValueError or TypeError, by version)
+        return None
+    elements = [*spec.bodies, *spec.joints, *spec.sites]
+    return frozenset(f"{type(e).__name__[3:].lower()} {e.name}" for e in elements if e.name)
 
 
 def _demo_problems(ds: Dataset, name: str, images: bool = True) -> tuple[list[str], int | None]:
@@ -119,10 +150,14 @@ def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dic
             problems.append(f"{name}: policy_actions must be finite and within [-1, 1]")
     if ("intervention" in arrays) != ("policy_actions" in arrays):
         problems.append(f"{name}: intervention and policy_actions come together (a takeover session records both)")
-    if not np.all(np.isfinite(arrays["rewards"][()])):
-        problems.append(f"{name}: rewards hold NaN or infinite values")
-    if not np.isin(arrays["is_success"][()], (0, 1)).all():
+    rewards = arrays["rewards"][()]
+    success_known = np.isin(arrays["is_success"][()], (0, 1)).all()
+    if not success_known:
         problems.append(f"{name}: is_success holds values other than 0 and 1")
+    if not np.all(np.isfinite(rewards)):
+        problems.append(f"{name}: rewards hold NaN or infinite values")
+    elif t and success_known and (wrong := _reward_problem(ds, arrays, rewards)):
+        problems.append(f"{name}: {wrong}")
     if t and np.asarray(arrays["terminated"][()])[:-1].any():
         problems.append(f"{name}: terminated before its last step (an episode ends where it terminates)")
     if not np.all(np.isfinite(arrays["states"][()])):
@@ -135,6 +170,24 @@ def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dic
     if str(attrs["env_id"]) != ds.env_id:
         problems.append(f"{name}: env_id {attrs['env_id']!r} differs from the dataset's {ds.env_id!r}")
     return problems
+
+
+def _reward_problem(ds: Dataset, arrays: dict[str, h5py.Dataset], rewards: np.ndarray) -> str | None:
+    """Why the rewards are not the env's for the steps recorded, or None: sparse, is_success - 1; dense,
+    minus the distance from the achieved goal to the desired one after the step (`FetchEnv.step`)."""
+    reward_type = ds.env_kwargs.get("reward_type", "sparse")
+    if reward_type == "sparse":
+        expected = np.asarray(arrays["is_success"][()], np.float64) - 1.0
+        exact = np.array_equal(rewards, expected)
+    else:
+        achieved, desired = arrays["next_obs/achieved_goal"][()], arrays["next_obs/desired_goal"][()]
+        expected = -np.linalg.norm(np.asarray(achieved, np.float64) - desired, axis=-1)
+        exact = bool(np.allclose(rewards, expected, rtol=0.0, atol=1e-9))
+    if exact:
+        return None
+    step = int(np.flatnonzero(~np.isclose(rewards, expected, rtol=0.0, atol=1e-9))[0])
+    return (f"rewards[{step}] is {rewards[step]:.6g}, but a {reward_type} reward there is {expected[step]:.6g} "
+            f"(env_kwargs reward_type {reward_type!r})")
 
 
 def validate(ds: Dataset) -> list[str]:
