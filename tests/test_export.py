@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import pathlib
+import shlex
 import shutil
 import subprocess
 import sys
@@ -18,6 +20,7 @@ import pytest
 from fetch.cli import main
 from fetch.dataset import open_dataset
 from fetch.dataset.export import export_minari, export_npz
+from fetch.errors import DatasetError
 
 ENV = "Drawer-open-v2"
 MAX_STEPS = "60"
@@ -360,7 +363,7 @@ def test_a_failed_export_leaves_the_previous_dataset_as_it_was(dataset: pathlib.
 
     monkeypatch.setattr(export, "_episode", broken)
     for dataset_id in ("fetch/drawer-open/expert-v0", "fetch/drawer-open/expert-v1"):
-        with pytest.raises(OSError, match="disk full"):
+        with pytest.raises(DatasetError, match=f"cannot write the Minari dataset '{dataset_id}' at .*: disk full"):
             export_minari(dataset, dataset_id, demos="all", force=True)
     assert sorted(p.relative_to(minari_root) for p in minari_root.rglob("*")) == before
     assert minari.load_dataset("fetch/drawer-open/expert-v0").total_episodes == 3
@@ -375,3 +378,138 @@ def test_a_demo_without_expert_labels_exports_its_applied_actions_as_meant(datas
     (last,) = sorted(tmp_path.glob(f"{ENV}_ep0003_*.npz"))
     with np.load(last) as m:
         np.testing.assert_array_equal(m["expert_action"], a["actions"])
+
+
+def _tree(root: pathlib.Path) -> dict[str, bytes]:
+    """Every file under `root`, hidden ones too, with its bytes."""
+    return {str(f.relative_to(root)): f.read_bytes() for f in sorted(root.rglob("*")) if f.is_file()}
+
+
+def test_a_disk_without_room_is_refused_before_anything_is_written(
+        dataset: pathlib.Path, minari_root: pathlib.Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Minari's HDF5 writes on a full disk ended in a segfault or an HDF5 traceback: the export checks the
+    free space against what it will write first, and the dataset already under the id stays as it was."""
+    import fetch.dataset.export as export
+
+    export_minari(dataset, "fetch/drawer-open/expert-v0")
+    before = _tree(minari_root)
+    with open_dataset(dataset) as ds:
+        need = export._space_needed(ds, export.select_demos(ds, "all"))
+    recorded_bytes = sum(v.nbytes for a, _ in recorded(dataset).values() for v in a.values())
+    assert need > recorded_bytes > sum(f.stat().st_size for f in minari_root.rglob("*") if f.is_file())
+    usage = shutil.disk_usage(minari_root)
+    monkeypatch.setattr(export.shutil, "disk_usage", lambda path: usage._replace(free=need - 1))
+    for dataset_id in ("fetch/drawer-open/expert-v0", "fetch/drawer-open/expert-v1", "new/expert-v0"):
+        assert main(["export", str(dataset), "--to", "minari", "--demos", "all", "--dataset-id", dataset_id,
+                     "--force"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "not enough disk space" in err and str(minari_root / dataset_id) in err
+        assert f"{(need - 1) / 2**20:.1f} MiB free" in err and f"needs about {need / 2**20:.1f} MiB" in err
+        assert _tree(minari_root) == before  # nothing created, nothing half-written
+    monkeypatch.setattr(export.shutil, "disk_usage", lambda path: usage._replace(free=need))
+    assert main(["export", str(dataset), "--to", "minari", "--demos", "all", "--force"]) == 0
+
+
+def test_a_write_error_inside_minari_is_one_line_and_leaves_the_old_dataset(
+        dataset: pathlib.Path, minari_root: pathlib.Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """HDF5 raises RuntimeError on a failed write ("... errno = 28, error message = 'No space left on
+    device'"): a one-line error naming the dataset, the staging directory removed, the old dataset kept."""
+    from minari.dataset._storages.hdf5_storage import HDF5Storage
+
+    export_minari(dataset, "fetch/drawer-open/expert-v0")
+    before = _tree(minari_root)
+
+    def full(*args: object) -> None:
+        raise RuntimeError("Can't write data (file write failed: errno = 28,\nerror message = 'No space left')")
+
+    monkeypatch.setattr(HDF5Storage, "update_episodes", full)
+    assert main(["export", str(dataset), "--to", "minari", "--force"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "No space left" in err
+    assert f"cannot write the Minari dataset 'fetch/drawer-open/expert-v0' at {minari_root}" in err
+    assert _tree(minari_root) == before
+
+
+def test_a_full_file_system_is_refused_with_one_line(dataset: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """On a real file system too small for the export (a tmpfs, mounted in a user namespace: no root
+    needed where the kernel allows one), with the dataset already under the id taking part of it."""
+    unshare = shutil.which("unshare")
+    if unshare is None:
+        pytest.skip("no unshare(1) to mount a small tmpfs without root")
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    namespace = [unshare, "--user", "--map-root-user", "--mount", "sh", "-c"]
+    probe = subprocess.run([*namespace, f"mount -t tmpfs -o size=64k tmpfs '{disk}'"], capture_output=True, text=True)
+    if probe.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs in a user namespace here: {probe.stderr.strip()}")
+    old = tmp_path / "old"  # an exported dataset, copied onto the small disk as the one under the id
+    env = {**os.environ, "MINARI_DATASETS_PATH": str(old)}
+    export = [sys.executable, "-c", "import sys; from fetch.cli import main; sys.exit(main(sys.argv[1:]))",
+              "export", str(dataset), "--to", "minari", "--dataset-id", "fetch/q/a-v0"]
+    assert subprocess.run(export, env=env, capture_output=True).returncode == 0
+    script = (f"mount -t tmpfs -o size=512k tmpfs '{disk}' && cp -r '{old}' '{disk}/m' && "
+              f"(cd '{disk}' && find . -type f -exec sha256sum {{}} + | sort) > '{tmp_path}/before' && "
+              f"MINARI_DATASETS_PATH='{disk}/m' {shlex.join(export)} --force 2> '{tmp_path}/err'; "
+              f"echo $? > '{tmp_path}/rc'; (cd '{disk}' && find . -type f -exec sha256sum {{}} + | sort) > "
+              f"'{tmp_path}/after'")
+    subprocess.run([*namespace, script], env=env, check=True)
+    err = (tmp_path / "err").read_text().strip()
+    assert (tmp_path / "rc").read_text().strip() == "2", err
+    assert len(err.splitlines()) == 1 and "not enough disk space" in err, err
+    assert (tmp_path / "after").read_text() == (tmp_path / "before").read_text() != ""
+
+
+@pytest.mark.parametrize("dataset_id", ["ab/expert-v0", "a/b/expert-v1", "t_/expert-v0", "-x/_y-v2"])
+def test_every_dataset_id_minari_reads_back_is_accepted(dataset: pathlib.Path, minari_root: pathlib.Path,
+                                                        dataset_id: str) -> None:
+    done = export_minari(dataset, dataset_id)
+    assert done.path == minari_root / dataset_id and dataset_id in minari.list_local_datasets()
+    assert minari.load_dataset(dataset_id).total_episodes == 3
+
+
+@pytest.mark.parametrize("dataset_id", ["t/abc-v0", "é/x-v0", "a//bc/x-v0", "/x-v0", "ab/x", "ab/x-v0\n",
+                                        "ab/x-v0/", "a.b/x-v0", "ab/x-v", "ab/-v0"])
+def test_a_dataset_id_minari_cannot_read_back_is_refused(dataset: pathlib.Path, minari_root: pathlib.Path,
+                                                         dataset_id: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """Minari's own rule (a namespace of at least 2 characters), and where Minari writes what it cannot
+    list or load (no version; an empty namespace part), a one-line error before anything is written."""
+    assert main(["export", str(dataset), "--to", "minari", "--dataset-id", dataset_id]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "(namespace/)name-v<version>" in err and "a namespace of at least 2 characters" in err
+    assert not minari_root.exists()
+
+
+def test_the_dataset_id_rule_is_minaris_with_a_version_and_no_empty_part() -> None:
+    from minari.dataset.minari_dataset import DATASET_ID_RE
+
+    from fetch.dataset.export import _DATASET_ID
+
+    parts = ["a", "ab", "a/b", "t_", "-", "--", "é", "a//b", "a/", "/a", "x-v0", ""]
+    for namespace in parts:
+        for name in ("x", "x-y", "x-v0", "-", "é"):
+            for version in ("-v0", "-v12", "", "-v"):
+                dataset_id = f"{namespace}/{name}{version}" if namespace else f"{name}{version}"
+                match = DATASET_ID_RE.fullmatch(dataset_id)
+                minaris = match is not None and match["version"] is not None and "//" not in dataset_id
+                assert bool(_DATASET_ID.fullmatch(dataset_id)) == minaris, dataset_id
+
+
+@pytest.mark.parametrize("variable", ["MINARI_DATASETS_PATH", "HF_LEROBOT_HOME", "HF_HOME", "XDG_CACHE_HOME"])
+def test_an_empty_output_variable_is_refused_not_read_as_here(dataset: pathlib.Path, tmp_path: pathlib.Path,
+                                                               variable: str, monkeypatch: pytest.MonkeyPatch,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """Minari and LeRobot read an empty $MINARI_DATASETS_PATH (HF_LEROBOT_HOME, ...) as the current
+    directory, which the exports wrote into; it is an error, so that where we write is where they look."""
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    for other in ("HF_LEROBOT_HOME", "HF_HOME", "XDG_CACHE_HOME"):
+        monkeypatch.delenv(other, raising=False)
+    monkeypatch.setenv(variable, "")
+    to = ["minari"] if variable == "MINARI_DATASETS_PATH" else ["lerobot", "--repo-id", "me/x", "--cameras", "none"]
+    assert main(["export", str(dataset), "--to", *to]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{variable} is set but empty; unset it" in err, err
+    assert not any(here.iterdir())

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import pathlib
+import shutil
 
 import pytest
 
@@ -47,6 +48,27 @@ def test_an_output_on_its_input_is_refused_and_the_input_is_untouched(reach: pat
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and f"--out {out}" in err and "outside the input" in err, (command, err)
         assert _digest(reach) == before, command
+
+
+@pytest.mark.parametrize("where", ["same", "inside", "parent"])
+def test_a_minari_dataset_on_its_input_is_refused_and_the_input_is_untouched(
+        reach: pathlib.Path, tmp_path: pathlib.Path, where: str, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The Minari export writes $MINARI_DATASETS_PATH/<id>: `export D --to minari --dataset-id ID --force`
+    with D there deleted D, and a MINARI_DATASETS_PATH inside D was written into."""
+    root, dataset_id, at = {"same": (tmp_path, "fetch/q/a-v0", "fetch/q/a-v0"),
+                            "inside": (tmp_path / "d" / "minari", "fetch/reach/expert-v0", "d"),
+                            "parent": (tmp_path, "held-v0", "held-v0/reach")}[where]
+    given = tmp_path / at
+    shutil.copytree(reach, given)
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    before = _digest(given)
+    for force in ([], ["--force"]):
+        assert main(["export", str(given), "--to", "minari", "--dataset-id", dataset_id, *force]) == 2, force
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and f"the Minari dataset {dataset_id!r} at {root / dataset_id}" in err \
+            and "outside the input" in err, (force, err)
+        assert _digest(given) == before, force
 
 
 def test_merge_refuses_to_write_into_an_input(reach: pathlib.Path, tmp_path: pathlib.Path,

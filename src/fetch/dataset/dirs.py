@@ -1,5 +1,5 @@
-"""A directory written whole: built beside its target under a hidden name and renamed into place; and
-the rule that an output never lies on an input."""
+"""A directory written whole: built beside its target under a hidden name and renamed into place; the
+rule that an output never lies on an input; a directory named by an environment variable."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pathlib
 import shutil
 from collections.abc import Iterable, Iterator
 
-from fetch.errors import DatasetError
+from fetch.errors import DatasetError, FetchError
 from fetch.stopping import raise_if_stopped
 
 
@@ -80,14 +80,28 @@ def dataset_extent(path: str | os.PathLike[str]) -> pathlib.Path:
     return p.parent if p.name == INDEX_NAME and p.is_file() else p
 
 
-def require_apart(out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]], what: str = "--out") -> None:
+def require_apart(out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]], what: str = "--out",
+                  remedy: str = "write it elsewhere, outside the input") -> None:
     """DatasetError unless `out` is neither an input, nor inside one, nor a directory that holds one:
-    writing there, or replacing it with --force, would overwrite or delete what the tool reads."""
+    writing there, or replacing it with --force, would overwrite or delete what the tool reads. The
+    error names `what` was given and ends with `remedy`."""
     target = pathlib.Path(out).resolve()
     for given in inputs:
         source = dataset_extent(given)
         if target == source or source in target.parents:
             where = "is" if target == source else "is inside"
-            raise DatasetError(f"{what} {out} {where} the input {source}; write it elsewhere, outside the input")
+            raise DatasetError(f"{what} {out} {where} the input {source}; {remedy}")
         if target in source.parents:
-            raise DatasetError(f"{what} {out} holds the input {source}; write it elsewhere, outside the input")
+            raise DatasetError(f"{what} {out} holds the input {source}; {remedy}")
+
+
+def env_dir(name: str, default: str) -> pathlib.Path | None:
+    """The directory $`name` names, as given, None where it is unset. Set but empty it is refused
+    with one line: Minari, LeRobot and the Hub take an empty value as the current directory, which is
+    never where a dataset is meant to go, and reading it as unset would write where they do not look."""
+    value = os.environ.get(name)
+    if value is None:
+        return None
+    if not value.strip():
+        raise FetchError(f"{name} is set but empty; unset it (for the default, {default}) or set it to a directory")
+    return pathlib.Path(value)

@@ -14,18 +14,25 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset import npz, schema
-from fetch.dataset.dirs import recover_replaced, replacing_dir, require_apart
+from fetch.dataset.dirs import env_dir, recover_replaced, replacing_dir, require_apart
 from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
-from fetch.dataset.reader import Dataset, open_dataset
+from fetch.dataset.reader import Dataset, one_line, open_dataset
 from fetch.dataset.validation import require_valid
 from fetch.errors import DatasetError, FetchError, UnknownNameError, install_hint
 
 SELECTIONS = ("successful", "all")
 """`--demos` choices besides the masks a file holds (train, valid, failed, ...)."""
 MINARI_INSTALL = install_hint("minari")
-_DATASET_ID = re.compile(r"^(?:[-_\w][-_\w/]*[-_\w]/)?[-_\w]+-v\d+$")
-"""Minari's `(namespace/)name-v<version>`; minari itself accepts a missing version, then fails on load."""
+_DATASET_ID = re.compile(r"(?:(?:[-\w]{2,}|[-\w]+(?:/[-\w]+)+)/)?[-\w]+-v\d+")
+"""Minari's `(namespace/)name-v<version>` (`minari.dataset.minari_dataset.DATASET_ID_RE`, matched whole): a
+namespace of at least 2 characters, nested with '/'. Stricter than Minari in two places, where Minari writes
+a dataset it cannot read back: the version is required (without one it fails on load), and a namespace has
+no empty part (`a//b` is written as `a/b`, which `list_local_datasets` leaves out)."""
+_SPACE_PER_EPISODE = 64 << 10
+_SPACE_MARGIN = 1 << 20
+"""What a Minari export needs besides the arrays [bytes]: per episode (its HDF5 groups and headers) and in
+all (the metadata, the file's headers), with room to spare."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,9 +102,9 @@ def _import_minari() -> Any:
 
 def minari_root() -> pathlib.Path:
     """Where Minari keeps local datasets: $MINARI_DATASETS_PATH (a relative one from the current
-    directory, as Minari takes it), else ~/.minari/datasets."""
-    root = os.environ.get("MINARI_DATASETS_PATH")
-    return (pathlib.Path(root) if root is not None else pathlib.Path.home() / ".minari" / "datasets").absolute()
+    directory, as Minari takes it; an empty one is an error, `dirs.env_dir`), else ~/.minari/datasets."""
+    root = env_dir("MINARI_DATASETS_PATH", "~/.minari/datasets")
+    return (root if root is not None else pathlib.Path.home() / ".minari" / "datasets").absolute()
 
 
 def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None, *, demos: str = "successful",
@@ -114,7 +121,9 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
     re-creates the env the demos were recorded in; the eval env spec is that env with the task's
     registered step limit. Recorded camera images are in the observations but not in a recovered
     env's: the description says how to render them. An existing dataset of the same id is an error
-    unless `force`; a failed export leaves no dataset behind.
+    unless `force`; a failed export leaves no dataset behind. The id's directory must lie apart from the
+    input (`dirs.require_apart`), and the disk must have room for the estimate `_space_needed` before
+    anything is written: Minari's HDF5 writes on a full disk can crash the process.
     """
     minari = _import_minari()
     with open_dataset(ds_path) as ds:
@@ -122,11 +131,15 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
         chosen = select_demos(ds, demos)
         devices = _devices(chosen)
         dataset_id = dataset_id or default_dataset_id(ds.env_id, devices, demos)
-        if not _DATASET_ID.match(dataset_id):
+        if not _DATASET_ID.fullmatch(dataset_id):
             raise FetchError(f"bad Minari dataset id {dataset_id!r}: it must read (namespace/)name-v<version> "
-                             "with letters, digits, '-' and '_', e.g. fetch/drawer-open/expert-v0")
+                             "with letters, digits, '-' and '_', a namespace of at least 2 characters (Minari's "
+                             "rule) and one '/' between its parts, e.g. fetch/drawer-open/expert-v0")
         root = minari_root()
         target = root / dataset_id
+        require_apart(target, [ds_path], what=f"the Minari dataset {dataset_id!r} at",
+                      remedy="choose a --dataset-id or MINARI_DATASETS_PATH outside the input")
+        _require_space(target, _space_needed(ds, chosen))
         # The collection env keeps --max-steps, as recorded: a kept failure ran to that limit and replays
         # in it. The eval env has the task's registered limit, so that its scores compare with others'.
         spec, eval_spec = env_spec(ds), env_spec(ds, evaluation=True)
@@ -156,12 +169,49 @@ def export_minari(ds_path: str | os.PathLike[str], dataset_id: str | None = None
     return Exported(path=target, demos=tuple(chosen), steps=steps)
 
 
+def _space_needed(ds: Dataset, chosen: dict[str, dict[str, Any]]) -> int:
+    """An upper bound on the disk space the Minari export of `chosen` takes [bytes]: the demos' arrays as
+    recorded (Minari keeps less: one copy of the observations where the file has obs and next_obs, and no
+    states), plus `_SPACE_PER_EPISODE` each and `_SPACE_MARGIN`. Read from the arrays' shapes, not their data."""
+    import h5py
+
+    sizes: list[int] = []
+
+    def add(_: str, item: object) -> None:
+        if isinstance(item, h5py.Dataset):
+            sizes.append(item.nbytes)
+
+    for name in chosen:
+        ds.demo(name).visititems(add)
+    return sum(sizes) + _SPACE_PER_EPISODE * len(chosen) + _SPACE_MARGIN
+
+
+def _require_space(target: pathlib.Path, need: int) -> None:
+    """DatasetError unless the file system `target` goes on (that of its nearest existing directory) has
+    `need` bytes free: Minari's HDF5 writes on a full disk end in a segfault or an HDF5 traceback, and an
+    old dataset under the id is replaced only once the new one is whole, so the space is needed in full."""
+    place = target
+    while not place.is_dir():
+        place = place.parent
+    free = shutil.disk_usage(place).free
+    if free < need:
+        raise DatasetError(f"not enough disk space for the Minari dataset at {target}: {place} has {_mib(free)} "
+                           f"free and the export needs about {_mib(need)}; free some space or set "
+                           "MINARI_DATASETS_PATH to a directory on another disk")
+
+
+def _mib(n: int) -> str:
+    return f"{n / (1 << 20):.1f} MiB"
+
+
 def _staged_minari(minari: Any, root: pathlib.Path, dataset_id: str, ds: Dataset, chosen: dict[str, dict[str, Any]],
                    spec: Any, eval_spec: Any, metadata: dict[str, Any], building: pathlib.Path) -> int:
     """Write the dataset into `building` (`dirs.replacing_dir` swaps it in whole: a kill at any instant
     leaves the old dataset or the new one under its id, never a part; a killed export left a broken
     dataset there in 4 of 8 trials). Minari writes under $MINARI_DATASETS_PATH/<id>, so it writes under
-    a hidden staging root beside the others (Minari lists no hidden directory), moved into `building`."""
+    a hidden staging root beside the others (Minari lists no hidden directory), moved into `building`.
+    What Minari's writes raise (OSError, HDF5's RuntimeError: a full disk, a write error) is a
+    DatasetError naming the dataset; nothing is left of the staging root."""
     import gymnasium as gym
 
     staging = root / f".partial-{dataset_id.replace('/', '--')}"
@@ -178,6 +228,9 @@ def _staged_minari(minari: Any, root: pathlib.Path, dataset_id: str, ds: Dataset
             else:
                 os.environ["MINARI_DATASETS_PATH"] = before
         (staging / dataset_id).rename(building)  # onto the empty directory
+    except (OSError, RuntimeError) as e:
+        raise DatasetError(f"cannot write the Minari dataset {dataset_id!r} at {root / dataset_id}: "
+                           f"{one_line(e)}") from e
     finally:
         env.close()
         shutil.rmtree(staging, ignore_errors=True)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import collections
 import math
-import os
 import pathlib
 import re
 from collections.abc import Sequence
@@ -22,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset import schema
+from fetch.dataset.dirs import env_dir
 from fetch.errors import FetchError, install_hint
 
 CODEBASE_VERSION = "v3.0"
@@ -49,11 +49,16 @@ _REPO_ID = re.compile(r"^[A-Za-z0-9][-\w.]*/[-\w.]+$")
 
 def lerobot_home() -> pathlib.Path:
     """Where LeRobot looks for `repo_id` when given no root: $HF_LEROBOT_HOME, else $HF_HOME/lerobot,
-    else $XDG_CACHE_HOME/huggingface/lerobot, else ~/.cache/huggingface/lerobot."""
-    if "HF_LEROBOT_HOME" in os.environ:
-        return pathlib.Path(os.environ["HF_LEROBOT_HOME"]).expanduser()
-    cache = pathlib.Path(os.environ.get("XDG_CACHE_HOME", "~/.cache")).expanduser()
-    return pathlib.Path(os.environ.get("HF_HOME", cache / "huggingface")).expanduser() / "lerobot"
+    else $XDG_CACHE_HOME/huggingface/lerobot, else ~/.cache/huggingface/lerobot. The first of these that
+    is set decides; set but empty, it is an error (`dirs.env_dir`)."""
+    default = "~/.cache/huggingface/lerobot"
+    home = env_dir("HF_LEROBOT_HOME", default)
+    if home is not None:
+        return home.expanduser()
+    hub = env_dir("HF_HOME", default)
+    if hub is None:
+        hub = (env_dir("XDG_CACHE_HOME", default) or pathlib.Path("~/.cache")) / "huggingface"
+    return hub.expanduser() / "lerobot"
 
 
 def check_repo_id(repo_id: str) -> None:
