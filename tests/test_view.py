@@ -164,6 +164,24 @@ def test_a_demo_that_cannot_be_read_is_a_row_without_video(reach_demos: pathlib.
     assert rows["demo_1"]["valid"] and (tmp_path / "r" / rows["demo_1"]["video"]).is_file()
 
 
+def test_the_files_own_problems_are_on_the_page_and_counted(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """A `total` off by one and a mask naming a missing demo are no one demo's problem: the page said
+    "0 invalid" and showed nothing."""
+    copy = tmp_path / "d"
+    shutil.copytree(reach_demos, copy)
+    with h5py.File(copy / "demos.hdf5", "r+") as f:
+        f["data"].attrs["total"] = int(f["data"].attrs["total"]) + 1
+        names = [*f["mask/valid"][()], b"demo_9"]
+        del f["mask/valid"]
+        f["mask/valid"] = names
+    capsys.readouterr()
+    assert main(["view", str(copy), "--out", str(tmp_path / "r"), "--size", str(SIZE)]) == 0
+    assert "0 invalid, 2 problem(s) of the file" in capsys.readouterr().out
+    problems = summary_of(tmp_path / "r")["problems"]
+    assert len(problems) == 2 and any("total" in p for p in problems) and any("demo_9" in p for p in problems)
+
+
 def test_a_strangers_markup_in_a_dataset_stays_text_in_chromium(reach_demos: pathlib.Path,
                                                                tmp_path: pathlib.Path) -> None:
     """A dataset whose path holds `<!--<script>` (the page's script never ran, the page said "0 invalid")
@@ -177,6 +195,8 @@ def test_a_strangers_markup_in_a_dataset_stays_text_in_chromium(reach_demos: pat
         path, group = ds.demo_file("demo_0")
     with h5py.File(path, "r+") as f:
         f[group].attrs["device"] = markup
+    with h5py.File(copy / "demos.hdf5", "r+") as f:  # a problem of the file, shown above the table
+        f["data"].attrs["total"] = int(f["data"].attrs["total"]) + 1
     out = tmp_path / "report"
     assert main(["view", str(copy), "--out", str(out), "--size", str(SIZE)]) == 0
     html = (out / "index.html").read_text()
@@ -187,4 +207,5 @@ def test_a_strangers_markup_in_a_dataset_stays_text_in_chromium(reach_demos: pat
         assert browser.evaluate("document.querySelectorAll('img').length") == 0
         assert browser.evaluate("document.querySelector('#row-demo_0 td.device').textContent") == markup
         assert "x<!--<script>y" in browser.evaluate("document.getElementById('subtitle').textContent")
+        assert "data.attrs['total']" in browser.evaluate("document.getElementById('file-problems').textContent")
         assert browser.evaluate("FetchView.state.errors") == []

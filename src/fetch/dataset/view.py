@@ -38,6 +38,9 @@ class ViewReport:
     demos: int
     videos: int
     invalid: int
+    """demos with a problem."""
+    file_problems: int
+    """problems of the file that are no one demo's (its masks, its total, its header)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -137,7 +140,10 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
         obs_layout, fps = dict(env.observation_layout), round(1.0 / env.dt)
         env.close()
         names = list(ds.demo_names)
-        problems = demo_problems(validate(ds), names)
+        found = validate(ds)
+        problems = demo_problems(found, names)
+        of_demos = {p for listed in problems.values() for p in listed}
+        file_problems = [p for p in found if p not in of_demos]
         rows = [_row(ds, name, problems.get(name, [])) for name in names]
         flagged = dataset_flags(ds)
         with replacing_dir(pathlib.Path(out), force) as root:
@@ -165,9 +171,9 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
                         entry["data"] = f"data/{row.name}.js"
                 entries.append(entry)
             summary = {"env_id": ds.env_id, "path": str(ds.path), "camera": camera, "fps": fps, "demos": entries,
-                       "flag_kinds": FLAG_KINDS}
+                       "flag_kinds": FLAG_KINDS, "problems": file_problems}
             (root / "index.html").write_text(page(summary, f"{ds.env_id}: {ds.path}"))
-    return ViewReport(pathlib.Path(out), len(rows), videos, sum(not r.valid for r in rows))
+    return ViewReport(pathlib.Path(out), len(rows), videos, sum(not r.valid for r in rows), len(file_problems))
 
 
 def _frames(ds: Dataset, names: list[str], camera: str, size: int, workers: int) -> Iterator[np.ndarray | None]:
@@ -195,8 +201,9 @@ def _video(path: pathlib.Path, images: np.ndarray, fps: int, size: int) -> None:
 
 def describe(report: ViewReport) -> str:
     index = report.path / "index.html"
-    return (f"wrote a page of {report.demos} demo(s) ({report.videos} videos, {report.invalid} invalid) to {index}; "
-            f"open it in a browser (file://{index.resolve()})")
+    problems = f", {report.file_problems} problem(s) of the file" if report.file_problems else ""
+    return (f"wrote a page of {report.demos} demo(s) ({report.videos} videos, {report.invalid} invalid{problems}) to "
+            f"{index}; open it in a browser (file://{index.resolve()})")
 
 
 def add_view_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -42,6 +42,7 @@ _PAGE = r"""<!DOCTYPE html>
 <body>
 <h1 id="title"></h1>
 <div class="sub" id="subtitle"></div>
+<ul id="file-problems" class="problem"></ul>
 <div id="summary-plots"></div>
 <div id="layout">
   <div id="table-wrap"><table id="demos"><thead><tr>
@@ -249,6 +250,7 @@ window.FetchView = (() => {
   document.getElementById("title").textContent = summary.env_id + ": " + summary.demos.length + " demos";
   document.getElementById("subtitle").textContent = summary.path + " \u2014 camera " + summary.camera +
     ", " + summary.fps + " fps; click a row for its plots";
+  document.getElementById("file-problems").append(...(summary.problems || []).map((p) => el("li", {}, p)));
   document.getElementById("summary-plots").append(lengthHistogram(summary.demos.map((d) => d.length)),
     successBy("device", "success by device"), successBy("session", "success by session"));
   buildTable();
