@@ -180,8 +180,16 @@ TOOLS: dict[str, list[str]] = {
     "split": ["split", "{d}"],
     "export_npz": ["export", "{d}", "--to", "npz", "--out", "{t}/npz"],
     "export_minari": ["export", "{d}", "--to", "minari", "--dataset-id", "fetch/corrupt/test-v0"],
+    "export_lerobot": ["export", "{d}", "--to", "lerobot", "--repo-id", "me/corrupt", "--out", "{t}/lerobot",
+                       "--cameras", "front", "--image-size", "16"],
+    "view": ["view", "{d}", "--out", "{t}/view", "--size", "16", "--workers", "1"],
+    "generate": ["generate", "--source", "{d}", "--out", "{t}/generated", "--demos", "1", "--workers", "1"],
+    "subtasks": ["subtasks", "{d}"],
+    "train": ["train", "{d}", "--out", "{t}/run", "--steps", "2", "--hidden", "8"],
 }
 CHANGES_THE_DATASET = ("render_obs", "split")
+NEEDS = {"export_minari": "minari", "export_lerobot": "av", "train": "torch"}
+"""The module a tool needs that a test virtualenv may not have (the tool is then skipped there)."""
 
 
 def snapshot(root: pathlib.Path) -> dict[str, bytes | None]:
@@ -205,6 +213,17 @@ def check_correct_result(tool: str, tmp: pathlib.Path, d: pathlib.Path, out: str
         assert len(list((tmp / "npz").glob("*.npz"))) == 2
     elif tool == "export_minari":
         assert (tmp / "minari" / "fetch" / "corrupt" / "test-v0").is_dir()
+    elif tool == "export_lerobot":
+        assert (tmp / "lerobot" / "meta" / "info.json").is_file()
+    elif tool == "view":
+        assert (tmp / "view" / "index.html").is_file()
+    elif tool == "generate":
+        with open_dataset(tmp / "generated") as ds:
+            assert validate(ds) == [] and len(ds.demo_names) == 1
+    elif tool == "subtasks":
+        assert "demo_1" in out, out
+    elif tool == "train":
+        assert (tmp / "run" / "checkpoint.pt").is_file()
     else:
         raise AssertionError(f"{tool} may not succeed on this file")
 
@@ -214,8 +233,9 @@ def check_correct_result(tool: str, tmp: pathlib.Path, d: pathlib.Path, out: str
 def test_corrupt_input_is_refused_cleanly_or_handled(reach_demos: pathlib.Path, tmp_path: pathlib.Path, case: str,
                                                      tool: str, capsys: pytest.CaptureFixture[str],
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    if tool in NEEDS:
+        pytest.importorskip(NEEDS[tool])
     if tool == "export_minari":
-        pytest.importorskip("minari")
         monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
     spec = CASES[case]
     d = tmp_path / "dataset"
@@ -251,6 +271,18 @@ def test_corrupt_input_is_refused_cleanly_or_handled(reach_demos: pathlib.Path, 
     elif code == 1 and tool == "replay_check":  # only a replay finds a changed value
         assert spec.sound_file and f"{DEMO}: " in out and "DEVIATES" in out, said
         assert after == before
+    elif code == 0 and tool == "view" and not spec.sound_file:  # a page that shows each problem where it is
+        import json
+
+        html = (tmp_path / "view" / "index.html").read_text()
+        tag = '<script id="summary" type="application/json">'
+        summary = json.loads(html[html.index(tag) + len(tag):html.index("</script>", html.index(tag))])
+        rows = {row["name"]: row for row in summary["demos"]}
+        shown = [rows[spec.demo]["problem"]] if spec.demo in rows else \
+            [*summary["problems"], *(row["problem"] for row in rows.values())] if spec.demo is None else []
+        assert any(re.search(spec.problem, p) for p in shown), f"the page does not show {spec.problem!r}: {said}"
+        assert {k: v for k, v in after.items() if k.startswith("dataset")} == \
+            {k: v for k, v in before.items() if k.startswith("dataset")}
     elif code == 0 and spec.sound_file and tool != "replay_check":
         check_correct_result(tool, tmp_path, d, out)
         if tool not in CHANGES_THE_DATASET:

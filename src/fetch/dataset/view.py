@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset.habits import FLAG_KINDS, dataset_flags
-from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, open_dataset, runs
+from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, one_line, open_dataset, runs
 from fetch.dataset.validation import validate
 from fetch.errors import DatasetError, FetchError
 from fetch.rendering import check_image_size
@@ -135,8 +135,12 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
         if ds.env_id not in fetch.ENV_IDS:
             raise DatasetError(f"{ds.path}: its env {ds.env_id!r} is not one of gym-fetch-v2's; "
                                f"`gym-fetch info {ds.path}` lists what is wrong")
+        try:  # without the env there is no page: its videos and plots need it
+            env: Any = gym.make(ds.env_id, **ds.env_kwargs).unwrapped
+        except Exception as e:  # noqa: BLE001 (the env's own check of its arguments, whatever it raises)
+            raise DatasetError(f"{ds.path}: its env_kwargs {ds.env_kwargs!r} are refused by {ds.env_id} "
+                               f"({one_line(e)}); `gym-fetch info {ds.path}` lists what is wrong") from e
         check_env_camera(ds.env_id, ds.env_kwargs, camera)
-        env: Any = gym.make(ds.env_id, **ds.env_kwargs).unwrapped
         obs_layout, fps = dict(env.observation_layout), round(1.0 / env.dt)
         env.close()
         names = list(ds.demo_names)
