@@ -44,17 +44,45 @@ def osmesa_loads() -> bool:
 
 
 def guard_mujoco_import() -> None:
-    """With MUJOCO_GL=osmesa and no OSMesa library, `import mujoco` itself dies inside PyOpenGL
-    (`'NoneType' object has no attribute 'glGetError'`), so nothing of the package could be used,
-    not even what never renders. Then mujoco is imported with its GL backend off, the variable put
-    back right after, and rendering raises `check_gl()`'s error, which names the package to install."""
+    """Import mujoco without the GL backend it would load itself, where that backend is of no use or harm:
+
+    - MUJOCO_GL=osmesa and no OSMesa library: `import mujoco` itself dies inside PyOpenGL (`'NoneType'
+      object has no attribute 'glGetError'`), so nothing of the package could be used, not even what
+      never renders; rendering then raises `check_gl()`'s error, which names the package to install.
+    - MUJOCO_GL unset on a Linux machine without a display: mujoco loads GLFW, which cannot open a
+      context there, and whose library search starts a Python subprocess for each GLFW library it finds
+      (pyGLFW's version check), in every process that imports mujoco, workers included. A terminal's
+      Ctrl-C goes to the whole process group and ended that subprocess with a traceback on screen
+      (`EOFError` or `BrokenPipeError` in `<string>`). `mujoco.GLContext` is then the context fetch's
+      renderers use (`context_class`, EGL or OSMesa), made when first used, so `mujoco.Renderer` works.
+
+    The variable is put back right after the import."""
     global _problem
     if sys.platform != "linux" or "mujoco" in sys.modules:
         return
-    if os.environ.get("MUJOCO_GL", "").strip().lower() == "osmesa" and not osmesa_loads():
+    requested = os.environ.get("MUJOCO_GL", "").strip().lower()
+    if requested == "osmesa" and not osmesa_loads():
         _problem = _OSMESA_MISSING.format(why="")
-        with environ(overwrite=True, MUJOCO_GL="disable"):
-            import mujoco  # noqa: F401  (with no GL backend, so that the import succeeds)
+        _import_mujoco_without_gl()
+    elif not requested and not has_display():
+        _import_mujoco_without_gl()
+        import mujoco
+
+        for module in (mujoco, sys.modules[mujoco.Renderer.__module__].gl_context):  # type: ignore[attr-defined]
+            module.GLContext = _ChosenContext
+
+
+def _import_mujoco_without_gl() -> None:
+    with environ(overwrite=True, MUJOCO_GL="disable"):
+        import mujoco  # noqa: F401  (with no GL backend)
+
+
+class _ChosenContext:
+    """`mujoco.GLContext` where `guard_mujoco_import` left MuJoCo's own out: a context of the backend
+    `context_class` picks when one is made."""
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        return context_class()(*args, **kwargs)
 
 
 def check_gl() -> None:
@@ -88,7 +116,14 @@ def context_class() -> Any:
         elif chosen == "osmesa":
             from mujoco.osmesa import GLContext  # type: ignore[no-redef]
         else:
-            from mujoco.gl_context import GLContext  # type: ignore[no-redef]
+            import mujoco
+
+            own = getattr(sys.modules[mujoco.Renderer.__module__].gl_context, "GLContext", None)  # type: ignore[attr-defined]
+            # Imported without its backend (`guard_mujoco_import`): GLFW, MuJoCo's own choice on Linux.
+            if own is None or own is _ChosenContext:
+                from mujoco.glfw import GLContext  # type: ignore[no-redef]
+            else:
+                GLContext = own
     except Exception as e:  # the GL backends' own error types vary
         raise FetchError(f"cannot load MuJoCo's {chosen} OpenGL backend: {e}. Set MUJOCO_GL=egl (libEGL, from "
                          "libegl1) or osmesa (apt-get install libosmesa6)") from e
@@ -103,9 +138,12 @@ def make_renderer(model: Any, height: int, width: int) -> Any:
 
     cls = context_class()
     module = sys.modules[mujoco.Renderer.__module__].gl_context  # type: ignore[attr-defined]
-    saved = module.GLContext
+    saved = getattr(module, "GLContext", None)  # none where mujoco was imported without a backend
     module.GLContext = cls
     try:
         return mujoco.Renderer(model, height=height, width=width)
     finally:
-        module.GLContext = saved
+        if saved is None:
+            del module.GLContext
+        else:
+            module.GLContext = saved
