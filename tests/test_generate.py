@@ -1,5 +1,5 @@
 """Demo generation: subtask annotation, generated datasets that validate and replay exactly, the same
-demos whatever the number of workers, resume after a SIGKILL, provenance, bad input."""
+demos whatever the number of workers, resume after a SIGKILL, a dead worker replaced, provenance, bad input."""
 
 from __future__ import annotations
 
@@ -8,10 +8,13 @@ import json
 import math
 import os
 import pathlib
+import re
 import signal
 import subprocess
 import sys
+import threading
 import time
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -21,8 +24,10 @@ import fetch
 from fetch.cli import main
 from fetch.dataset import open_dataset
 from fetch.experts import make_expert
-from fetch.generate.attempt import CLEARANCE, FINGER_WIDTH, FINGERTIPS, Generator, Options, pass_over
+from fetch.generate import run
+from fetch.generate.attempt import CLEARANCE, FINGER_WIDTH, FINGERTIPS, Generator, Options, Result, pass_over
 from fetch.generate.segments import Segment, annotate, from_frame, to_frame
+from fetch.generate.workers import RESTARTS, Work
 from fetch.tasks import task_class
 from fetch.tasks.subtasks import Frame
 
@@ -254,6 +259,121 @@ def test_resume_after_sigkill_gives_the_same_demos(source: pathlib.Path, serial:
     with open_dataset(out) as ds:
         assert 0 < len(ds.demo_names) < 12
     assert main(gen_argv(source, out, 12, "--workers", "1")) == 0
+    same_demos(serial, out)
+
+
+class _Dying:
+    """A worker's generator that, at attempt `at`, ends its own process (SIGKILL: a native crash, the
+    out-of-memory killer) every time; or, with `marker`, only the first time any worker gets there, and
+    then not by itself: it writes its pid to `marker` and waits for the test to kill it."""
+
+    def __init__(self, inner: Generator, at: int, marker: str) -> None:
+        self.inner, self.at, self.marker = inner, at, marker
+
+    def attempt(self, number: int) -> Result:
+        if number == self.at and not self.marker:
+            os.kill(os.getpid(), signal.SIGKILL)
+        if number == self.at:
+            try:
+                fd = os.open(self.marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+            except FileExistsError:
+                pass  # killed once already: make it
+            else:
+                os.write(fd, f"{os.getpid()}\n".encode())
+                os.close(fd)
+                time.sleep(120)
+        return self.inner.attempt(number)
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+@dataclasses.dataclass(frozen=True)
+class _DyingWork(Work):
+    """`Work` whose workers die at attempt `at` (`_Dying`); pickled by reference to this module."""
+
+    at: int = 9
+    marker: str = ""
+
+    def generator(self) -> Any:
+        return _Dying(super().generator(), self.at, self.marker)
+
+
+def _children() -> dict[int, str]:
+    """This process's child processes: pid -> command line."""
+    found = {}
+    for stat in pathlib.Path("/proc").glob("[0-9]*/stat"):
+        try:
+            ppid = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+            if ppid == os.getpid():
+                found[int(stat.parent.name)] = (stat.parent / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+        except (OSError, IndexError, ValueError):
+            continue
+    return found
+
+
+def _in_flight(err: str) -> list[int]:
+    """The attempt that killed its worker (9), for each death `err` tells of, if the attempts it says were
+    in flight hold it (which others were depends on timing)."""
+    spans = [range(int(lo), int(hi) + 1) for lo, hi in re.findall(r"died \(SIGKILL\) with attempts (\d+)-(\d+)", err)]
+    return [9 for span in spans if 9 in span]
+
+
+@pytest.mark.skipif(not pathlib.Path("/proc/self/stat").exists(), reason="finds the pool's workers in /proc")
+def test_a_worker_killed_mid_run_is_replaced_and_the_demos_are_the_same(
+        source: pathlib.Path, serial: pathlib.Path, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A worker SIGKILLed (`kill -9`, the out-of-memory killer) while it makes attempt 9 broke the pool and
+    ended the run with a BrokenProcessPool traceback. New workers make the attempts in flight again: the
+    run ends as an uninterrupted one, with the same demos."""
+    marker = tmp_path / "stalled-pid"
+    monkeypatch.setattr(run, "Work", lambda *a: _DyingWork(*a, marker=str(marker)))
+    killed: list[int] = []
+
+    def kill_the_stalled_worker() -> None:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            text = marker.read_text() if marker.exists() else ""
+            if text.endswith("\n"):
+                pid = int(text)
+                assert "spawn_main" in _children().get(pid, ""), "not a worker of this process's pool"
+                os.kill(pid, signal.SIGKILL)
+                killed.append(pid)
+                return
+            time.sleep(0.01)
+
+    killer = threading.Thread(target=kill_the_stalled_worker, daemon=True)
+    killer.start()
+    out = tmp_path / "replaced"
+    assert main(gen_argv(source, out, 12, "--workers", "2")) == 0
+    killer.join(timeout=5)
+    assert killed, "no worker was killed"
+    err = capsys.readouterr().err
+    assert "starting new workers" in err and _in_flight(err) == [9], err
+    assert "Traceback" not in err
+    assert not [pid for pid, line in _children().items() if "spawn_main" in line], "workers left behind"
+    same_demos(serial, out)
+
+
+def test_a_worker_that_dies_every_time_ends_the_run_with_one_line_and_the_demos_saved(
+        source: pathlib.Path, serial: pathlib.Path, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A death that comes back (attempt 9 crashes its worker every time) stops the run after `RESTARTS`
+    new pools, with one line and exit status 2; the demos saved before stay valid and the same command,
+    run again (here without the crash), ends with the demos an uninterrupted run makes."""
+    monkeypatch.setattr(run, "Work", _DyingWork)
+    out = tmp_path / "dying"
+    assert main(gen_argv(source, out, 12, "--workers", "2")) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len([line for line in err if "starting new workers" in line]) == RESTARTS
+    assert "error: a generate worker died (SIGKILL)" in err[-1] and _in_flight("\n".join(err)) == [9] * 3, err
+    assert f"after {RESTARTS} restarts" in err[-1] and "run the same command again" in err[-1]
+    assert not [pid for pid, line in _children().items() if "spawn_main" in line], "workers left behind"
+    assert main(["info", str(out)]) == 0
+    with open_dataset(out) as ds:
+        assert all(int(ds.attrs(n)["attempt"]) < 8 for n in ds.demo_names)
+    monkeypatch.undo()
+    assert main(gen_argv(source, out, 12, "--workers", "2")) == 0
     same_demos(serial, out)
 
 

@@ -53,9 +53,16 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> No
     shuts down writes its result to a pipe that nothing reads any more, and waits there for good, and
     so does the interpreter's exit, which joins it (a double Ctrl-C hung `render-obs` and `generate`)."""
     workers = list((getattr(pool, "_processes", None) or {}).values())  # private: CPython 3.8-3.13
+    results = getattr(pool, "_result_queue", None)  # private too; shutdown lets go of it
     pool.shutdown(wait=not abandon, cancel_futures=True)
     if abandon:
         for worker in workers:
             worker.terminate()
         for worker in workers:
             worker.join(timeout=5)
+        if results is not None and not any(worker.is_alive() for worker in workers):
+            # A worker terminated while it wrote a result leaves half a message in the pipe, and the
+            # pool's thread waits for the rest for good (the interpreter's exit with it: `generate`
+            # hung once after its last demo). This end closed too, with every worker gone, it reads
+            # the end of the pipe instead.
+            results._writer.close()

@@ -2,7 +2,8 @@
 
 Every backend yields results in attempt order (attempt n always resets with seed + n and draws
 from its own random stream), so what is kept does not depend on how many workers made it.
-Attempts go out in chunks; a bounded window of chunks is in flight, the oldest awaited first.
+Attempts go out in chunks; a bounded window of chunks is in flight, the oldest awaited first. A
+worker process that dies (killed, out of memory) is replaced and its chunks made again, the same.
 """
 
 from __future__ import annotations
@@ -13,7 +14,9 @@ import dataclasses
 import itertools
 import multiprocessing
 import os
-from collections.abc import Iterator
+import signal
+import sys
+from collections.abc import Callable, Iterator
 from typing import Any, Protocol
 
 from fetch._processes import start_worker, stop_pool, workers_deaf_to_ctrl_c
@@ -25,6 +28,9 @@ CHUNK = 4
 """Attempts per task sent to a worker."""
 WINDOW = 3
 """Chunks in flight per worker: enough to keep it busy while the oldest is awaited."""
+RESTARTS = 2
+"""How often a pool is started again after one of its workers died, making the chunks in flight again
+(as the render workers do). A death that comes back every time still ends the run, with a clear error."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,34 +91,88 @@ def _run_chunk(first: int, count: int) -> list[Result]:
     return [_worker.attempt(n) for n in range(first, first + count)]
 
 
-def _ordered(submit: Any, wait: Any, workers: int, first: int) -> Iterator[Result]:
-    """Keep WINDOW chunks per worker in flight; yield their results oldest chunk first."""
-    pending: collections.deque[Any] = collections.deque()
+@dataclasses.dataclass
+class _Chunk:
+    start: int
+    """its first attempt."""
+    future: Any = None
+    """None until submitted to the current workers."""
+
+
+def _ordered(submit: Any, wait: Any, workers: int, first: int,
+             replace: Callable[[range, BaseException], None] | None = None) -> Iterator[Result]:
+    """Keep WINDOW chunks per worker in flight; yield their results oldest chunk first. Where a dead
+    worker broke the pool, `replace` (given the attempts in flight) starts new workers and every chunk
+    in flight is sent again: an attempt's result depends on its number alone, not on who made it."""
+    pending: collections.deque[_Chunk] = collections.deque()
     starts = itertools.count(first, CHUNK)
     while True:
-        while len(pending) < WINDOW * workers:
-            pending.append(submit(next(starts), CHUNK))
-        yield from wait(pending.popleft())
+        try:
+            while len(pending) < WINDOW * workers:
+                pending.append(_Chunk(next(starts)))
+            for chunk in pending:
+                if chunk.future is None:
+                    chunk.future = submit(chunk.start, CHUNK)
+            results = wait(pending[0].future)
+        except concurrent.futures.process.BrokenProcessPool as e:
+            if replace is None:
+                raise
+            replace(range(pending[0].start, pending[-1].start + CHUNK), e)
+            for chunk in pending:
+                chunk.future = None
+            continue
+        pending.popleft()
+        yield from results
 
 
 class Pool:
-    """Attempts in `workers` processes (spawned: no threads or GL state inherited)."""
+    """Attempts in `workers` processes (spawned: no threads or GL state inherited). A worker that dies
+    is replaced `RESTARTS` times at most (said on stderr); then the run stops with a `FetchError`."""
 
     def __init__(self, work: Work, workers: int, nice: int = 0) -> None:
         self.workers = workers
-        self.executor = concurrent.futures.ProcessPoolExecutor(
-            workers, mp_context=multiprocessing.get_context("spawn"), initializer=_init_worker,
-            initargs=(work, nice, os.getpid()))
+        self.restarts = RESTARTS
+        self._initargs = (work, nice, os.getpid())
+        self.executor = self._start()
+
+    def _start(self) -> concurrent.futures.ProcessPoolExecutor:
+        return concurrent.futures.ProcessPoolExecutor(
+            self.workers, mp_context=multiprocessing.get_context("spawn"), initializer=_init_worker,
+            initargs=self._initargs)
 
     def results(self, first: int) -> Iterator[Result]:
-        return _ordered(self._submit, lambda future: future.result(), self.workers, first)
+        return _ordered(self._submit, lambda future: future.result(), self.workers, first, self._replace)
 
     def _submit(self, start: int, n: int) -> concurrent.futures.Future[list[Result]]:
-        with workers_deaf_to_ctrl_c():
+        with workers_deaf_to_ctrl_c():  # the new workers a submit starts, after a replace too
             return self.executor.submit(_run_chunk, start, n)
+
+    def _replace(self, attempts: range, error: BaseException) -> None:
+        """Start new workers in place of a pool that a dead one broke (its futures stay failed)."""
+        processes = list((getattr(self.executor, "_processes", None) or {}).values())  # private, as stop_pool
+        stop_pool(self.executor, abandon=True)
+        died = (f"a generate worker died ({_how_ended(processes)}) with attempts {attempts.start}-{attempts.stop - 1} "
+                "in flight")
+        if not self.restarts:
+            raise FetchError(f"{died}, after {RESTARTS} restarts; the demos saved so far are valid: run the same "
+                             "command again to continue") from error
+        self.restarts -= 1
+        print(f"{died}; starting new workers to make them again ({self.restarts} more restart(s) allowed)",
+              file=sys.stderr, flush=True)
+        self.executor = self._start()
 
     def close(self) -> None:
         stop_pool(self.executor, abandon=True)  # the chunks still in flight are not wanted
+
+
+def _how_ended(processes: list[multiprocessing.process.BaseProcess]) -> str:
+    """How a broken pool's workers ended, but for those the pool itself then terminated (SIGTERM):
+    "SIGKILL" (`kill -9`, the out-of-memory killer), "SIGSEGV", "exit status 1"."""
+    ends = {p.exitcode for p in processes if p.exitcode is not None} - {-signal.SIGTERM}
+    if not ends:
+        return "how, unknown"
+    names = {int(s): s.name for s in signal.Signals}
+    return ", ".join(names.get(-c, f"signal {-c}") if c < 0 else f"exit status {c}" for c in sorted(ends))
 
 
 class RayCluster:
