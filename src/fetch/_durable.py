@@ -5,9 +5,22 @@ and exports all write through it)."""
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import pathlib
 from collections.abc import Iterator
+
+NO_ROOM = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+"""The errors of a write that found no room: a full disk, a quota, a file-size limit."""
+
+
+def why(e: OSError) -> str:
+    """What went wrong with a file, in a few words on one line ("the disk is full"); HDF5's own
+    messages span several lines."""
+    known = {errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is exceeded",
+             errno.EFBIG: "the file-size limit was reached", errno.EACCES: "permission denied",
+             errno.EROFS: "the file system is read-only"}
+    return known.get(e.errno or 0) or " ".join(str(e).split())
 
 
 def fsync_path(path: pathlib.Path) -> None:

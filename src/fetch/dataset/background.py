@@ -3,8 +3,8 @@ order behind it, at most `MAX_QUEUED` wait, a failure stops saving and is raised
 
 from __future__ import annotations
 
+import collections
 import contextlib
-import errno
 import os
 import pathlib
 import queue
@@ -12,6 +12,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
+from fetch._durable import why
 from fetch.dataset import schema
 from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
@@ -58,6 +59,10 @@ class BackgroundWriter:
         self._pending: list[str] = []
         self._queue: queue.Queue[tuple[str, Demo | None] | None] = queue.Queue(MAX_QUEUED)
         self._unpublished: list[tuple[str, Demo]] = []
+        self._unsaved: collections.deque[str] = collections.deque()
+        """demos committed and not yet published, in order: the first is the one a failure did not save."""
+        self._images_failed: tuple[str, str] | None = None
+        """(demo, reason) when adding a saved demo's images (`_complete`) failed."""
         self.most_behind = 0
         """the most demos that were ever waiting to be saved."""
         self._thread = threading.Thread(target=self._run, name="fetch-dataset-writer", daemon=True)
@@ -85,9 +90,11 @@ class BackgroundWriter:
     def commit(self, demo: Demo) -> str:
         """Queue a finished demo for saving and return its name; raises the writer's earlier failure."""
         if self.error is not None:
-            raise DatasetError(f"saving to {self.out_dir} failed earlier: {self.error}") from self.error
+            error = self._failure()
+            raise DatasetError(f"saving to {self.out_dir} failed earlier: {error}") from error
         name = self.demo_name(self._next_index)
         self._next_index += 1
+        self._unsaved.append(name)
         self._queue.put((name, demo))  # waits while MAX_QUEUED demos are already waiting
         self.most_behind = max(self.most_behind, self._queue.qsize())
         return name
@@ -118,7 +125,10 @@ class BackgroundWriter:
                     try:
                         self._save(name, demo)
                     except OSError as e:
-                        self.error = DatasetError(self._describe(name, e))
+                        # The demos saved before it are listed first, so the count is what is on disk.
+                        self._publish_safely(complete=False)
+                        if self.error is None:
+                            self.error = DatasetError(self._describe(name, e))
                         continue
                     except BaseException as e:  # a bug (or a worker's KeyboardInterrupt) must not end the thread
                         self.error = e
@@ -129,24 +139,28 @@ class BackgroundWriter:
             finally:
                 self._queue.task_done()
 
-    def _publish_safely(self) -> None:
+    def _publish_safely(self, complete: bool = True) -> None:
+        """Publish the saved demos, then (`complete`) add what is made after the fact (their images)."""
         batch, self._unpublished = self._unpublished, []
         if not batch or self.error is not None:
             return
         try:
             self._publish([name for name, _ in batch])
         except OSError as e:
-            self.error = DatasetError(self._describe(batch[0][0], e))
+            self.error = DatasetError(self._describe_unpublished([name for name, _ in batch], e))
             return
         except BaseException as e:
             self.error = e
             return
         for name, demo in batch:
             self.saved += 1
+            self._unsaved.popleft()  # published in the order committed
             if self.on_saved is not None:
                 with contextlib.suppress(Exception):  # the demo is saved; only the news of it failed
                     self.on_saved(name, demo)
-            self._complete_safely(name, demo)
+        for name, demo in batch:
+            if complete and self.error is None:
+                self._complete_safely(name, demo)
 
     def _publish_due(self, unpublished: int) -> bool:
         """Whether to publish the `unpublished` saved demos now (default: each at once)."""
@@ -159,7 +173,10 @@ class BackgroundWriter:
         try:
             self._complete(name, demo)
         except OSError as e:
-            self.error = DatasetError(self._describe(name, e))
+            # `name` is saved (listed in the index); what failed is only what is added after the fact.
+            self._images_failed = (name, self._reason(e))
+            self.error = DatasetError(f"could not add {name}'s images in {self.out_dir}: {self._reason(e)}; "
+                                      f"{self._images_note(name)}, and the demos saved before are intact")
         except BaseException as e:  # a KeyboardInterrupt from a worker comes back through its future
             self.error = e
 
@@ -170,11 +187,32 @@ class BackgroundWriter:
     def _save(self, name: str, demo: Demo) -> None:
         raise NotImplementedError
 
+    @staticmethod
+    def _reason(e: OSError) -> str:
+        return why(e)
+
     def _describe(self, name: str, e: OSError) -> str:
-        reason = {errno.EFBIG: "the file-size limit was reached", errno.ENOSPC: "the disk is full",
-                  errno.EACCES: "permission denied", errno.EROFS: "the file system is read-only"}.get(
-            e.errno or 0, str(e))
-        return f"could not save {name} in {self.out_dir}: {reason}; the demos saved before are intact"
+        return f"could not save {name} in {self.out_dir}: {self._reason(e)}; the demos saved before are intact"
+
+    def _describe_unpublished(self, names: list[str], e: OSError) -> str:
+        """Why the saved demos `names` could not be published (`_publish` failed)."""
+        return self._describe(names[0], e)
+
+    def _images_note(self, name: str) -> str:
+        return f"{name} is saved without its images (the next session in this directory adds them)"
+
+    def _failure(self) -> BaseException:
+        """The failure to raise. When adding a saved demo's images failed, saving stopped there: it names
+        the first demo committed after it that is not saved (the one a person would miss), if any."""
+        assert self.error is not None
+        unsaved = list(self._unsaved)
+        if self._images_failed is None or not unsaved:
+            return self.error
+        name, reason = self._images_failed
+        after = len(unsaved) - 1
+        more = f" (nor the {after} demo{'s' if after > 1 else ''} after it)" if after else ""
+        return DatasetError(f"could not save {unsaved[0]}{more} in {self.out_dir}: {reason} while {name}'s images "
+                            f"were added; {self._images_note(name)}, and the demos saved before are intact")
 
     def _finish(self) -> None:
         """Called by `close` after the last save (e.g. to record the attempt count)."""
@@ -198,7 +236,10 @@ class BackgroundWriter:
         finally:
             self._unlock()
         if self.error is not None:
-            raise self.error
+            error = self._failure()
+            if error is self.error:
+                raise error
+            raise error from self.error
 
     def __enter__(self) -> BackgroundWriter:
         return self

@@ -18,7 +18,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from fetch._durable import replacing
+from fetch._durable import NO_ROOM, replacing, why
 from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.dirs import require_apart
@@ -104,9 +104,14 @@ def merge(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str], for
                 raise DatasetError("these datasets cannot be merged (demos of different tasks, arrays or models "
                                    "would be mixed):\n  " + "\n  ".join(differences))
         total = sum(len(s.demo_names) for s in sources)
-        with replacing(target) as tmp, h5py.File(tmp, "w") as f:
-            report = _write_merged(f, sources, total, target, hashes[0])
-            raise_if_stopped()  # a stop whose exception Python swallowed: nothing is written
+        try:
+            with replacing(target) as tmp, h5py.File(tmp, "w") as f:
+                report = _write_merged(f, sources, total, target, hashes[0])
+                raise_if_stopped()  # a stop whose exception Python swallowed: nothing is written
+        except OSError as e:
+            if e.errno not in NO_ROOM:
+                raise
+            raise DatasetError(f"could not write {target}: {why(e)}; nothing was written") from e
     return report
 
 
@@ -196,10 +201,15 @@ def split(path: str | os.PathLike[str], valid: float, seed: int = 0) -> dict[str
         masks["valid"] = [n for i, n in enumerate(successful) if i in chosen]
         masks["train"] = [n for i, n in enumerate(successful) if i not in chosen]
         masks["failed"] = failed
-        with rewritten(index) as f:
-            write_masks(f, masks)
-            f["data"].attrs["split"] = json.dumps({"valid": valid, "seed": seed})
-            raise_if_stopped()  # a stop whose exception Python swallowed: the index stays as it was
+        try:
+            with rewritten(index) as f:
+                write_masks(f, masks)
+                f["data"].attrs["split"] = json.dumps({"valid": valid, "seed": seed})
+                raise_if_stopped()  # a stop whose exception Python swallowed: the index stays as it was
+        except OSError as e:
+            if e.errno not in NO_ROOM:
+                raise
+            raise DatasetError(f"could not rewrite {index}: {why(e)}; it is unchanged") from e
     return {k: len(masks[k]) for k in schema.SPLITS}
 
 

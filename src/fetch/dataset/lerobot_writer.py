@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from fetch._durable import NO_ROOM, why
 from fetch.dataset import lerobot
 from fetch.dataset.lerobot import video_key
 from fetch.dataset.reader import Dataset
@@ -132,8 +133,13 @@ def write_lerobot(ds: Dataset, chosen: dict[str, dict[str, Any]], target: pathli
     from fetch.dataset.dirs import replacing_dir
 
     pa, pq, av = _imports()
-    with replacing_dir(pathlib.Path(target), force) as building:
-        written = _write(pa, pq, av, ds, chosen, building, repo_id, cameras, image_size, fps, workers)
+    try:
+        with replacing_dir(pathlib.Path(target), force) as building:
+            written = _write(pa, pq, av, ds, chosen, building, repo_id, cameras, image_size, fps, workers)
+    except OSError as e:  # pyarrow's and PyAV's messages say it twice, or on several lines
+        if e.errno not in NO_ROOM:
+            raise
+        raise FetchError(f"could not write the LeRobot dataset {target}: {why(e)}; nothing was written") from e
     return dataclasses.replace(written, path=pathlib.Path(target))
 
 

@@ -19,12 +19,13 @@ from typing import Any
 import h5py
 import numpy as np
 
+from fetch._durable import NO_ROOM, why
 from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.durable import Rewrites, editing
 from fetch.dataset.reader import FILE_HELP, open_dataset, resolve
 from fetch.dataset.validation import require_valid
-from fetch.errors import FetchError
+from fetch.errors import DatasetError, FetchError
 from fetch.rendering import check_image_size
 from fetch.stopping import raise_if_stopped
 
@@ -90,15 +91,21 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
         new_layout = schema.layout_to_json(_with_camera(layout, camera, size))
         workers = min(workers, max(1, len(names)))
         results = _rendered(index, env_id, env_kwargs, size, camera, names, workers)
-        with Rewrites() as rewrites:  # every file changes once all demos are rendered, or none does
-            for name, images in progress(results, len(names), f"render {camera}"):
-                shard, group = where[name]
-                with rewrites.edit(shard) as f:
-                    _store(f[group], key, images)
-                frames += len(images)
-            with rewrites.edit(index) as f:  # last: the layout names the camera once every demo has it
-                f["data"].attrs["layout"] = new_layout
-            raise_if_stopped()  # a stop whose exception Python swallowed: no file changes
+        try:
+            with Rewrites() as rewrites:  # every file changes once all demos are rendered, or none does
+                for name, images in progress(results, len(names), f"render {camera}"):
+                    shard, group = where[name]
+                    with rewrites.edit(shard) as f:
+                        _store(f[group], key, images)
+                    frames += len(images)
+                with rewrites.edit(index) as f:  # last: the layout names the camera once every demo has it
+                    f["data"].attrs["layout"] = new_layout
+                raise_if_stopped()  # a stop whose exception Python swallowed: no file changes
+        except OSError as e:
+            if e.errno not in NO_ROOM:
+                raise
+            raise DatasetError(f"could not add {camera}'s images to {index}: {why(e)}; the dataset is "
+                               "unchanged") from e
         return RenderReport(len(names), frames, time.perf_counter() - start, workers)
 
 

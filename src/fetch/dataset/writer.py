@@ -296,6 +296,13 @@ class DatasetWriter(BackgroundWriter):
     def _finish(self) -> None:
         self._write_index()  # the attempt count
 
+    def _describe_unpublished(self, names: list[str], e: OSError) -> str:
+        files, them = ((f"{names[0]}'s file is", "it") if len(names) == 1
+                       else (f"the files of {names[0]} to {names[-1]} are", "them"))
+        return (f"could not save {names[0]} in {self.out_dir}: {self._reason(e)} while the index was rewritten; "
+                f"{files} kept in {schema.EPISODES_DIR}/ and the next session in this directory takes {them} in, "
+                "and the demos saved before are intact")
+
     # -- images -------------------------------------------------------------------------------
     # With cameras, a demo is saved first without its images, so it is durable as soon as the
     # attempt ends; its images are then rendered from its saved states in a separate process (off
