@@ -9,9 +9,9 @@ free body (linear speed [m/s]). Prints a table; docs/benchmarks.md holds the num
 room's stiff ones (fetch.scene.ROOM_SOLREF). `--experts N` adds the experts' success under the
 chosen contacts; `--cost` times ordinary random steps both ways, alternating in one run.
 
-    python benchmarks/bench_abuse.py --steps 10000 --experts 200
-    python benchmarks/bench_abuse.py --steps 10000 --contacts mujoco --experts 200
-    python benchmarks/bench_abuse.py --cost
+    python -m benchmarks.bench_abuse --steps 10000 --experts 200
+    python -m benchmarks.bench_abuse --steps 10000 --contacts mujoco --experts 200
+    python -m benchmarks.bench_abuse --cost
 """
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ import mujoco
 import numpy as np
 
 import fetch
-from expert_success import evaluate  # benchmarks/ is the script's directory, so on sys.path
+from benchmarks._machine import machine_line
+from benchmarks.expert_success import evaluate
 from fetch.scene import MUJOCO_SOLIMP, MUJOCO_SOLREF, ROOM_SOLIMP, ROOM_SOLREF
 
 DEPTH_BAR, LAUNCH_BAR = 0.005, 1.0
@@ -194,7 +195,8 @@ def main() -> None:
                              "and with action noise 0.1")
     args = parser.parse_args()
     if args.in_use:
-        print(f"mujoco {mujoco.__version__}; the experts' episodes, seeds 0-{args.in_use - 1}\n")
+        print(machine_line())
+        print(f"the experts' episodes, seeds 0-{args.in_use - 1}\n")
         print("| task | action noise | worst penetration [mm] | where | steps > 5 mm | fastest launch [m/s] | which "
               "| steps > 1 m/s | steps |")
         print("|---|---|---|---|---|---|---|---|---|")
@@ -208,12 +210,14 @@ def main() -> None:
     # Only our room's tasks have two contact models to compare.
     only = [e for e in args.only if (args.contacts == "model" and not args.cost) or room_geoms(gym.make(e))]
     if args.cost:
-        print(f"mujoco {mujoco.__version__}; 5 rounds of 1000 uniform random steps each way\n")
+        print(machine_line())
+        print("5 rounds of 1000 uniform random steps each way\n")
         print("| task | steps/s stiff / MuJoCo's default contacts (median of 5) |\n|---|---|")
         for env_id in only:
             print(f"| `{env_id}` | {cost(env_id, 1000):.3f} |", flush=True)
         return
-    print(f"mujoco {mujoco.__version__}; {args.steps} abusive steps per task, seed {args.seed}, "
+    print(machine_line())
+    print(f"{args.steps} abusive steps per task, seed {args.seed}, "
           f"{args.contacts} contacts\n")
     print("| task | worst penetration [mm] | where | steps > 5 mm | fastest object [m/s] | which "
           "| fastest launch [m/s] | which | steps > 1 m/s | steps/s |")

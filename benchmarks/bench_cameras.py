@@ -1,6 +1,6 @@
 """Benchmark `collect --cameras`: does recording images keep the 25 Hz control rate?
 
-    python benchmarks/bench_cameras.py [--env Drawer-open-v2] [--episodes 4] [--cameras front,wrist] [--size 128]
+    python -m benchmarks.bench_cameras [--env Drawer-open-v2] [--episodes 4] [--cameras front,wrist] [--size 128]
 
 The expert collects at the real-time rate without a window, once without cameras and once with
 them; the table gives how late each control tick started, the achieved rate and the time a tick
@@ -14,10 +14,9 @@ import os
 import tempfile
 import time
 
-import fetch  # first: it picks the offscreen GL backend before mujoco is imported  # isort: skip
-import mujoco
 import numpy as np
 
+from benchmarks._machine import machine_line
 from fetch.teleop.expert import ExpertDevice
 from fetch.teleop.session import CollectConfig, Session, make_env
 
@@ -50,8 +49,8 @@ def main() -> None:
     cameras = tuple(c for c in args.cameras.split(",") if c)
     plain = run(args.env, args.episodes, (), args.size)
     images = run(args.env, args.episodes, cameras, args.size)
-    print(f"\n{args.env}, 25 Hz, no window; {os.cpu_count()} cores, MUJOCO_GL={os.environ.get('MUJOCO_GL')}, "
-          f"mujoco {mujoco.__version__}, fetch {fetch.__version__}")
+    print(f"\n{machine_line()}")
+    print(f"{args.env}, 25 Hz, no window; MUJOCO_GL={os.environ.get('MUJOCO_GL')}")
     print(f"| {'measure':42} | {'no cameras':>12} | {(','.join(cameras) + f' {args.size}px'):>20} |")
     print(f"|{'-' * 44}|{'-' * 14}|{'-' * 22}|")
     rows = [("ticks", "ticks", "{:.0f}"), ("tick start after deadline p50 [ms]", "late_p50", "{:.2f}"),

@@ -6,12 +6,10 @@ import argparse
 import contextlib
 import dataclasses
 import gc
-import importlib.metadata
 import io
 import json
 import os
 import pickle
-import platform
 import statistics
 import subprocess
 import sys
@@ -25,6 +23,7 @@ import mujoco
 import numpy as np
 
 import fetch
+from benchmarks._machine import machine_table
 from fetch.env import STATE_SPEC
 
 OURS_COMPARED = "PickPlace-v2"
@@ -33,63 +32,6 @@ TARGET_RATIO = 1.10
 TARGET_REMAKE_MS = 30.0
 TARGET_RESETS_PER_S = 1000.0
 TARGET_SPEEDUP = 1.3
-
-
-# -- machine and versions ---------------------------------------------------------------------------
-
-
-def cpu_model() -> str:
-    """The CPU's model name from /proc/cpuinfo (or platform's guess elsewhere)."""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            for line in f:
-                if line.lower().startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
-
-
-def package_version(name: str) -> str:
-    try:
-        return importlib.metadata.version(name)
-    except importlib.metadata.PackageNotFoundError:
-        return "not installed"
-
-
-def _git(where: str, *args: str) -> str:
-    return subprocess.run(["git", "-C", where, *args], capture_output=True, text=True, check=True,
-                          timeout=10).stdout.strip()
-
-
-def fetch_source() -> str:
-    """Where `fetch` was imported from, with its git commit when that is a checkout."""
-    where = os.path.dirname(os.path.abspath(fetch.__file__))
-    try:
-        commit = _git(where, "rev-parse", "--short", "HEAD")
-        dirty = _git(where, "status", "--porcelain", "--", ".")
-    except (OSError, subprocess.SubprocessError):
-        return where
-    return f"{where} (git {commit}{', with uncommitted changes' if dirty else ''})"
-
-
-def header() -> str:
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count() or 0
-    rows = [
-        ("CPU", cpu_model()),
-        ("cores", f"{os.cpu_count()} logical, {usable} usable by this process"),
-        ("OS", platform.platform()),
-        ("Python", platform.python_version()),
-        ("mujoco", mujoco.__version__),
-        ("gymnasium", gym.__version__),
-        ("gymnasium-robotics", package_version("gymnasium-robotics")),
-        ("numpy", np.__version__),
-        ("gym-fetch-v2", f"{fetch.__version__} from {fetch_source()}"),
-    ]
-    return "\n".join(["| | |", "|---|---|", *(f"| {k} | {v} |" for k, v in rows)])
 
 
 # -- envs ------------------------------------------------------------------------------------------
@@ -488,7 +430,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         s.env.close()
 
     print("## Machine and versions\n")
-    print(header())
+    print(machine_table("gymnasium-robotics"))
     print(f"\nSettings: {args.steps} steps per rollout (fixed random actions, seed {args.seed}; resets at "
           f"the TimeLimit not timed), {args.rounds} interleaved rounds, {args.resets} resets per round; "
           f"gym.make timed in {args.make_processes} fresh processes x (1 + {args.make_repeats}) makes.")

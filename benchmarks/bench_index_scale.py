@@ -1,6 +1,6 @@
 """Benchmark a dataset's scale: is committing a demo as fast at 100,000 demos as at the first thousand?
 
-    python benchmarks/bench_index_scale.py [--demos 100000] [--steps 5] [--dir /tmp/scale] [--every-demo 4000]
+    python -m benchmarks.bench_index_scale [--demos 100000] [--steps 5] [--dir /tmp/scale] [--every-demo 4000]
 
 Real files, real fsyncs: a `DatasetWriter` (the collector's) commits `--demos` tiny Reach demos (the
 same recorded demo under new names, so the disk and the index are what is measured, not physics)
@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import shutil
 import tempfile
 import time
@@ -23,6 +22,7 @@ import h5py
 import numpy as np
 
 import fetch  # noqa: F401  (registers the ids)
+from benchmarks._machine import machine_line
 from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.formats import open_writer, recorded_layout
 from fetch.dataset.writer import DatasetWriter
@@ -83,8 +83,8 @@ def main() -> None:
     parser.add_argument("--every-demo", type=int, default=4000, help="demos with the old rule (0: skip)")
     args = parser.parse_args()
     env, demo = one_demo(args.steps)
-    print(f"{platform.node()}: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}, h5py {h5py.__version__}; "
-          f"{args.steps}-step Reach demos into {args.dir}")
+    print(machine_line("h5py"))
+    print(f"{args.steps}-step Reach demos into {args.dir}")
     rows = []
     if args.every_demo:
         print(f"the index rewritten for every demo, {args.every_demo} demos:")

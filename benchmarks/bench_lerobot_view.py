@@ -1,7 +1,7 @@
 """`gym-fetch export --to lerobot` and `gym-fetch view` on one dataset: wall time and CPU seconds (this
 process and the render workers), which a shared machine's wall time overstates.
 
-    python benchmarks/bench_lerobot_view.py DATASET [--out DIR] [--cameras front,wrist] [--size 128]
+    python -m benchmarks.bench_lerobot_view DATASET [--out DIR] [--cameras front,wrist] [--size 128]
 """
 
 from __future__ import annotations

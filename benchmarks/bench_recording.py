@@ -1,6 +1,6 @@
 """Benchmark recording: overhead per env step, committing a 500-step demo, replay --check speed.
 
-    python benchmarks/bench_recording.py [--env PickPlace-v2] [--steps 3000] [--existing 100]
+    python -m benchmarks.bench_recording [--env PickPlace-v2] [--steps 3000] [--existing 100]
 
 Every figure is a ratio or a time measured in this one run (the machines are shared and noisy).
 """
@@ -8,17 +8,15 @@ Every figure is a ratio or a time measured in this one run (the machines are sha
 from __future__ import annotations
 
 import argparse
-import platform
 import statistics
 import tempfile
 import time
 
 import gymnasium as gym
 import h5py
-import mujoco
 import numpy as np
 
-import fetch
+from benchmarks._machine import machine_line
 from fetch.dataset import open_dataset
 from fetch.dataset.episode import EpisodeBuffer
 from fetch.dataset.formats import open_writer, recorded_layout
@@ -129,9 +127,7 @@ def main() -> None:
     parser.add_argument("--existing", type=int, default=100, help="demos already in the dataset when committing")
     parser.add_argument("--demos", type=int, default=40, help="demos replayed")
     args = parser.parse_args()
-    print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}; python "
-          f"{platform.python_version()}, fetch {fetch.__version__}, mujoco {mujoco.__version__}, gymnasium "
-          f"{gym.__version__}, h5py {h5py.__version__} (HDF5 {h5py.version.hdf5_version})\n")
+    print(f"{machine_line('h5py')} (HDF5 {h5py.version.hdf5_version})\n")
     p, r, extra = overhead(args.env, args.steps, args.repeats)
     loop, durable, worst = commit_times(args.env, args.existing)
     check, raw, ratio = replay_speed(args.env, args.demos)

@@ -1,6 +1,6 @@
 """Benchmark the collection loop's timing with the viewer window on (run it under a display or Xvfb):
 
-    xvfb-run -a -s "-screen 0 1024x768x24" env -u MUJOCO_GL python benchmarks/bench_teleop.py [--env PickPlace-v2]
+    xvfb-run -a -s "-screen 0 1024x768x24" env -u MUJOCO_GL python -m benchmarks.bench_teleop [--env PickPlace-v2]
 
 MUJOCO_GL unset: MuJoCo renders through the display's GL, as on a desktop. The expert drives (a person's
 device is polled the same way), once with the window's shadows and once without (`--shadows on,off`); the
@@ -13,15 +13,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import tempfile
 import time
 from typing import Any
 
-import mujoco
 import numpy as np
 
-import fetch
+from benchmarks._machine import machine_line
 from fetch.teleop.expert import ExpertDevice
 from fetch.teleop.gamepad import KIND as GAMEPAD
 from fetch.teleop.session import CollectConfig, HudState, Session, make_env
@@ -60,9 +58,9 @@ def main() -> None:
             summary = session.run()
         runs[shadows] = (session, summary, viewer)
     period = next(iter(runs.values()))[0].clock.period
-    print(f"machine: {platform.platform()}, {os.cpu_count()} cores, load average {load_before:.1f} before and "
-          f"{os.getloadavg()[0]:.1f} after; python {platform.python_version()}, fetch {fetch.__version__}, "
-          f"mujoco {mujoco.__version__}; {args.env}, {1 / period:.0f} Hz, window 640x480 with the wrist inset, "
+    print(machine_line())
+    print(f"load average {load_before:.1f} before the runs; {args.env}, {1 / period:.0f} Hz, window 640x480 "
+          "with the wrist inset, "
           f"{args.demos} demos a run\n")
     columns = {shadows: measures(session, summary, viewer) for shadows, (session, summary, viewer) in runs.items()}
     names = list(next(iter(columns.values())))

@@ -1,6 +1,6 @@
 """Benchmark the dataset tools: render-obs frames/s by worker count, video, merge.
 
-    python benchmarks/bench_tools.py [--env Drawer-open-v2] [--demos 12] [--size 84]
+    python -m benchmarks.bench_tools [--env Drawer-open-v2] [--demos 12] [--size 84]
 
 Makes a dataset with the scripted expert in a temporary directory, then times each tool on copies
 of it. Speedups are ratios measured in this one run (the machines are shared and noisy).
@@ -11,15 +11,13 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
-import platform
 import shutil
 import tempfile
 import time
 
-import fetch  # first: it picks the offscreen GL backend before mujoco is imported  # isort: skip
 import h5py
-import mujoco
 
+from benchmarks._machine import machine_line
 from fetch.cli import main
 from fetch.dataset.render_obs import default_workers, render_obs
 
@@ -70,9 +68,8 @@ def run(env_id: str, demos: int, size: int) -> None:
         rows.append((f"split {2 * demos} demos", f"{t * 1e3:.0f} ms", ""))
     finally:
         shutil.rmtree(root, ignore_errors=True)
-    print(f"\n{env_id}: {demos} demos, {steps} steps, {frames} states; {platform.processor() or platform.machine()}, "
-          f"{os.cpu_count()} cores, MUJOCO_GL={os.environ.get('MUJOCO_GL')}, mujoco {mujoco.__version__}, "
-          f"fetch {fetch.__version__}")
+    print(f"\n{machine_line('h5py')}")
+    print(f"{env_id}: {demos} demos, {steps} steps, {frames} states; MUJOCO_GL={os.environ.get('MUJOCO_GL')}")
     print(f"| {'measure':44} | {'result':>14} | {'detail':30} |")
     print(f"|{'-' * 46}|{'-' * 16}|{'-' * 32}|")
     for label, result, detail in rows:

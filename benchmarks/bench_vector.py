@@ -1,8 +1,8 @@
 """Steps per second of many worlds: one env, Gymnasium's Sync and Async vector envs, and FetchVectorEnv.
 
-    python benchmarks/bench_vector.py                 # N = 1, 2, 8, 32, 128; a table at the end
-    python benchmarks/bench_vector.py --quick         # N = 1, 2, 8, fewer rounds
-    python benchmarks/bench_vector.py --out /tmp/bv.json --resume   # keep the Ns already measured
+    python -m benchmarks.bench_vector                 # N = 1, 2, 8, 32, 128; a table at the end
+    python -m benchmarks.bench_vector --quick         # N = 1, 2, 8, fewer rounds
+    python -m benchmarks.bench_vector --out /tmp/bv.json --resume   # keep the Ns already measured
 
 Every cell counts world-steps per second (N x vector steps / wall time) under uniform random actions,
 with autoreset at the 50-step horizon (the single env is reset every 50 steps, as the others). For
@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pathlib
 import statistics
 import sys
@@ -26,10 +25,10 @@ import time
 from typing import Any
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
 import fetch
+from benchmarks._machine import machine_line
 from fetch.vector import has_batch
 
 KINDS = ("single", "sync", "async", "ours")
@@ -105,9 +104,8 @@ def main(argv: list[str] | None = None) -> int:
         cells = json.loads(args.out.read_text())["cells"]
 
     load_before = _load()
-    print(f"{args.env}: mujoco {mujoco.__version__}, gymnasium {gym.__version__}, numpy {np.__version__}, "
-          f"{os.cpu_count()} CPUs, FetchVectorEnv {'on C threads' if has_batch() else 'serial (no mujoco.batch)'}; "
-          f"load average {load_before}", flush=True)
+    print(machine_line())
+    print(f"{args.env}: FetchVectorEnv {'on C threads' if has_batch() else 'serial (no mujoco.batch)'}", flush=True)
     for n in ns:
         if str(n) in cells:
             continue

@@ -1,6 +1,6 @@
 """A correction round with a stand-in corrector: what `collect --device takeover` and `train --from` buy.
 
-    python benchmarks/corrections.py --env Bin-pick-v2 --dir /tmp/corr [--demos 100] [--attempts 20]
+    python -m benchmarks.corrections --env Bin-pick-v2 --dir /tmp/corr [--demos 100] [--attempts 20]
 
 Each stage is skipped when its output is already in --dir, so an interrupted run goes on where it stopped:
 
@@ -26,18 +26,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pathlib
-import platform
 import time
 from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
-import fetch
+from benchmarks._machine import machine_line
 from fetch.cli import main as gym_fetch
 from fetch.experts import make_expert
 from fetch.learn.device import PolicyDevice
@@ -190,8 +187,8 @@ def main() -> None:
 
     with open_dataset(corrected) as ds:
         demos, takeovers, person, steps = summarize(ds).corrections
-    print(f"machine: {platform.platform()}, {os.cpu_count()} cores; python {platform.python_version()}, fetch "
-          f"{fetch.__version__}, mujoco {mujoco.__version__}; {env_id}, {args.demos} expert demos, "
+    print(machine_line("torch"))
+    print(f"{env_id}, {args.demos} expert demos, "
           f"{args.attempts} attempts with the stand-in ready to take over ({takeovers} takeovers, {person} of "
           f"their {steps} steps driven by it), {args.episodes} evaluation episodes\n")
     print(f"--correction-weight {args.weight or 'default'}, --steps {args.steps or 'default'} for --from\n")

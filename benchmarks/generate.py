@@ -11,7 +11,7 @@ result (`--curves`).
 Resumable: every result is appended to `<out>/results.jsonl` as it is measured and skipped when the
 benchmark runs again (a generation stopped midway resumes where it was). Prints a table.
 
-    nice -n 10 python benchmarks/generate.py --out /tmp/bench-generate
+    nice -n 10 python -m benchmarks.generate --out /tmp/bench-generate
 """
 
 from __future__ import annotations
@@ -194,8 +194,9 @@ def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[
             path: pathlib.Path) -> dict[str, Any]:
     """Train `gym-fetch train`'s default policy for the task, with its steps, on `kind` and evaluate it (one
     training seed)."""
-    from fetch.learn.settings import task_training
     from learning_curves import auto_variant, train_and_evaluate  # the harness of the 100-expert-demo figures
+
+    from fetch.learn.settings import task_training
 
     policy = auto_variant(env_id)
     steps = task_training(env_id).steps
@@ -214,9 +215,10 @@ def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[
 def policy_key(kind: str, env_id: str) -> str:
     """A trained policy's key in the results: what it was trained on, the policy and, where `gym-fetch train`
     takes other than its default steps on the task, those (results from before that setting lack them)."""
+    from learning_curves import auto_variant
+
     from fetch.learn.settings import task_training
     from fetch.tasks import Training
-    from learning_curves import auto_variant
 
     steps = task_training(env_id).steps
     return f"policy/{kind}/{env_id}/{auto_variant(env_id)}" + (f"/{steps}steps" if steps != Training().steps else "")
@@ -225,9 +227,10 @@ def policy_key(kind: str, env_id: str) -> str:
 def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves: pathlib.Path) -> None:
     """Policy success trained on generated demos, on their sources, and (from learning_curves.py) on 100 expert
     demos; the bar is generated >= expert-100."""
-    from fetch.learn.settings import task_training
     from learning_curves import auto_variant
     from learning_curves import load_results as curve_results
+
+    from fetch.learn.settings import task_training
 
     if not any(policy_key(kind, t) in results for kind in TRAINED for t in tasks):
         return

@@ -2,7 +2,7 @@
 
 Run with the train extra installed (torch; matplotlib for the plot, optional):
 
-    nice -n 10 python benchmarks/learning_curves.py --results /tmp/learning_curves
+    nice -n 10 python -m benchmarks.learning_curves --results /tmp/learning_curves
 
 Every run (task, recording, policy, demos, training seed) trains with `fetch.learn.train` and
 evaluates 100 episodes on seeds disjoint from the data's; its result is one JSON file under
@@ -351,7 +351,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def choices_table(results: pathlib.Path) -> str:
-    """The table of `train_choices.py`'s runs (one seed each), if it has run."""
+    """The table of `experiments/train_choices.py`'s runs (one seed each), if it has run."""
     runs = [json.loads(p.read_text()) for p in sorted((results / "choices").glob("*.json"))]
     runs = [r for r in runs if r.get("seed", 0) == 0]  # other training seeds: train_choices.py --seed
     if not runs:
@@ -360,7 +360,7 @@ def choices_table(results: pathlib.Path) -> str:
     tasks = [t for t in ALL_TASKS if any(r["task"] == t for r in runs)]
     rate = {(r["task"], r["variant"]): f"{100 * r['success_rate']:.0f}" for r in runs}
     cpu = {v: np.mean([r["train_cpu_seconds"] for r in runs if r["variant"] == v]) for v in variants}
-    lines = ["## Choosing the defaults (`benchmarks/train_choices.py`, 100 DART demos, one training seed)", "",
+    lines = ["## Choosing the defaults (`experiments/train_choices.py`, 100 DART demos, one training seed)", "",
              "Each variant changes one thing from `dart-5k` (mlp-chunk, 5000 steps): `dartstop` demos end 10 steps "
              "after success; `c20` 20-action chunks; `512x3` a wider, deeper MLP; `on05` observation noise 0.05; "
              "`gru` the recurrent policy (128 units, windows of 10 steps); `gru50` with windows of the whole 50-step "

@@ -1,6 +1,6 @@
 """The measure of the whole tool: ten demonstrations with a pad, then a policy that solves the task.
 
-    .venv-train/bin/python benchmarks/mission.py [--env PickPlace-v2] [--style standin] [--demos 10]
+    .venv-train/bin/python -m benchmarks.mission [--env PickPlace-v2] [--style standin] [--demos 10]
         [--generated 1000] [--generate-noise STD] [--workers 2] [--dir /tmp/mission]
 
 1. teleop: 10 demos through the real gamepad path (SDL's virtual pad, the real `GamepadDevice` and
@@ -20,26 +20,20 @@ import argparse
 import json
 import os
 import pathlib
-import platform
 import subprocess
 import sys
 import time
 
-import mujoco
-
-HERE = pathlib.Path(__file__).resolve().parent
+from benchmarks._machine import machine_line
 
 
 def teleop(env_id: str, out: pathlib.Path, demos: int, style: str, seed: int = 0) -> tuple[float, float]:
     """([s] wall time, [s] what a person at 25 Hz would have spent steering)."""
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-    sys.path.insert(0, str(HERE.parent / "tests"))
-    import fetch  # noqa: F401
-    import operators
-    import vpad
     from fetch.experts import make_expert
     from fetch.teleop.gamepad import GamepadDevice
     from fetch.teleop.session import CollectConfig, Session, make_env
+    from tests import operators, vpad  # the stand-in operator and SDL's virtual pad, shared with the tests
 
     vpad.init_headless()
     pad = vpad.VirtualPad()
@@ -87,8 +81,8 @@ def main() -> None:
     timing_file = root / "timing.json"
     timing = json.loads(timing_file.read_text()) if timing_file.exists() else {}
     human, generated, run, result = root / "human", root / "generated", root / "run", root / "eval.json"
-    print(f"{platform.node()}: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}, mujoco {mujoco.__version__}; "
-          f"{args.env}, {args.demos} pad demos -> {args.generated} generated -> train -> eval {args.episodes}")
+    print(machine_line("torch"))
+    print(f"{args.env}, {args.demos} pad demos -> {args.generated} generated -> train -> eval {args.episodes}")
     if "teleop" not in timing:
         timing["teleop"], timing["person"] = teleop(args.env, human, args.demos, args.style, args.seed)
         timing_file.write_text(json.dumps(timing))

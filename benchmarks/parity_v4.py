@@ -3,9 +3,12 @@
 Needs a virtualenv with mujoco 3.11 (the newest the v4 envs run on), gymnasium-robotics and this
 package (`--no-deps`); `--venv DIR` makes one:
 
-    python benchmarks/parity_v4.py --venv /tmp/v4venv          # create it, then re-run inside it
-    /tmp/v4venv/bin/python benchmarks/parity_v4.py --rollouts 200
-    /tmp/v4venv/bin/python benchmarks/parity_v4.py --record tests/data/v4_reference.npz
+    python -m benchmarks.parity_v4 --venv /tmp/v4venv          # create it, then re-run inside it
+    /tmp/v4venv/bin/python -m benchmarks.parity_v4 --rollouts 200
+    /tmp/v4venv/bin/python -m benchmarks.parity_v4 --record tests/data/v4_reference.npz
+
+(from the repository root). The same virtualenv runs `python -m tools.classic_starts`, which writes the
+v4 start states the package ships.
 
 For each task: the same seed in both envs, then the same uniform random actions in [-1, 1]^4
 (plus the issue's two scripted patterns); the table gives the largest difference of the initial
@@ -24,6 +27,8 @@ import sys
 import time
 
 import numpy as np
+
+from benchmarks._machine import machine_line
 
 PAIRS = {
     "Reach-v2": "FetchReach-v4",
@@ -45,7 +50,7 @@ def make_venv(path: pathlib.Path) -> None:
     pip = [str(path / "bin" / "python"), "-m", "pip", "install", "-q"]
     subprocess.run([*pip, "mujoco==3.11.0", "gymnasium-robotics==1.4.2", "h5py"], check=True)
     subprocess.run([*pip, "--no-deps", "-e", str(root)], check=True)
-    print(f"made {path}; now run: {path}/bin/python {pathlib.Path(__file__).name} ...")
+    print(f"made {path}; now run, from {root}: {path}/bin/python -m benchmarks.parity_v4 ...")
 
 
 def action_patterns(rng: np.random.Generator, count: int) -> list[tuple[str, np.ndarray]]:
@@ -171,28 +176,6 @@ def record(path: pathlib.Path, first_seed: int, rollouts: int = RECORD_ROLLOUTS)
     print(f"wrote {path} ({path.stat().st_size // 1024} KiB)")
 
 
-def record_starts(path: pathlib.Path) -> None:
-    """The start state each v4 env computes when it is made (the arm pulled to its start for 10
-    control steps on mujoco 3.11): the package loads it, so the start is the same on any mujoco."""
-    import gymnasium as gym
-    import gymnasium_robotics
-    import mujoco
-
-    gym.register_envs(gymnasium_robotics)
-    arrays: dict[str, np.ndarray] = {}
-    for theirs_id in PAIRS.values():
-        u = gym.make(theirs_id).unwrapped
-        scene = pathlib.Path(u.fullpath).name
-        arrays[f"{scene}/qpos"], arrays[f"{scene}/qvel"] = u.initial_qpos, u.initial_qvel
-        arrays[f"{scene}/time"] = np.array(u.initial_time)
-        arrays[f"{scene}/grip"] = u.initial_gripper_xpos
-        arrays[f"{scene}/object_z"] = np.array(getattr(u, "height_offset", np.nan))
-    arrays["versions"] = np.array([f"mujoco {mujoco.__version__}",
-                                   f"gymnasium-robotics {gymnasium_robotics.__version__}"])
-    np.savez(path, **arrays)
-    print(f"wrote {path} ({path.stat().st_size // 1024} KiB)")
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--venv", type=pathlib.Path, help="create a mujoco 3.11 virtualenv here and stop")
@@ -202,8 +185,6 @@ def main() -> int:
     parser.add_argument("--record", type=pathlib.Path, help="write the v4 reference rollouts here and stop")
     parser.add_argument("--record-rollouts", type=int, default=RECORD_ROLLOUTS,
                         help=f"rollouts per task --record keeps, the last two the patterns ({RECORD_ROLLOUTS})")
-    parser.add_argument("--record-starts", type=pathlib.Path,
-                        help="write the v4 start states here (src/fetch/assets/classic_starts.npz) and stop")
     args = parser.parse_args()
     if args.venv:
         make_venv(args.venv)
@@ -211,9 +192,8 @@ def main() -> int:
     try:
         import gymnasium as gym
         import gymnasium_robotics
-        import mujoco
 
-        import fetch
+        import fetch  # noqa: F401  (registers the ids)
     except ImportError as error:
         print(f"parity_v4: {error}; make the environment with --venv DIR first", file=sys.stderr)
         return 2
@@ -221,11 +201,8 @@ def main() -> int:
     if args.record:
         record(args.record, args.first_seed, args.record_rollouts)
         return 0
-    if args.record_starts:
-        record_starts(args.record_starts)
-        return 0
-    print(f"mujoco {mujoco.__version__}, gymnasium-robotics {gymnasium_robotics.__version__}, "
-          f"gym-fetch-v2 {fetch.__version__}; {args.rollouts} random rollouts of {STEPS} steps per task "
+    print(machine_line("gymnasium-robotics"))
+    print(f"{args.rollouts} random rollouts of {STEPS} steps per task "
           "(+ full diagonal and full +x, each then back)\n")
     print("| ours | v4 | initial obs max diff | goal max diff | grip diff p50 / p95 / max [mm] | "
           "object diff p50 / p95 / max [mm] | observation diff p50 / p95 / max | is_success agree | "

@@ -6,7 +6,7 @@ reported saved. At the end: every reported demo must be in the dataset, `info` m
 and `replay --check` must find every demo exact. Prints a table of the rounds by signal and the
 final checks.
 
-    python benchmarks/soak.py --rounds 40 --out /tmp/soak
+    python -m benchmarks.soak --rounds 40 --out /tmp/soak
 """
 
 from __future__ import annotations

@@ -15,8 +15,8 @@ expert demos) or into a fresh output, is stopped after a random 0.5-6 s, and mus
 
 Prints one table of tools by stop, each cell "passed/rounds" with the failures listed below it.
 
-    python benchmarks/soak_tools.py --rounds 3 --out /tmp/soak-tools
-    python benchmarks/soak_tools.py --tools collect,render-obs --stops group-int,double-int --rounds 10
+    python -m benchmarks.soak_tools --rounds 3 --out /tmp/soak-tools
+    python -m benchmarks.soak_tools --tools collect,render-obs --stops group-int,double-int --rounds 10
 
 `train` and `eval` run with the torch venv's Python (`--train-python`, default .venv-train/bin/python).
 """
@@ -35,8 +35,7 @@ import subprocess
 import sys
 import time
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
-from procs import alive, children  # noqa: E402
+from tests.procs import alive, children  # the process probes the tests use
 
 STOPS = ("kill", "term", "group-int", "double-int", "closed-stdout", "full-stdout")
 GRACE = 10.0

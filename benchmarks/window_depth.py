@@ -1,7 +1,7 @@
 """How well a person can steer in the collection window: what its picture shows, measured from the picture.
 
-    python benchmarks/window_depth.py [--envs PickPlace-v2,Bin-pick-v2,Drawer-open-v2] [--states 300]
-    python benchmarks/window_depth.py --candidates 40    # other places for the operator's camera
+    python -m benchmarks.window_depth [--envs PickPlace-v2,Bin-pick-v2,Drawer-open-v2] [--states 300]
+    python -m benchmarks.window_depth --candidates 40    # other places for the operator's camera
 
 First, what the window's frame costs to render (640 x 480, PickPlace-v2, the default view), with and
 without multisampling, shadows and the sky: on a software renderer this decides the frames a person
@@ -27,14 +27,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import time
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 
-import fetch
+from benchmarks._machine import machine_line
 from fetch.teleop.scenery import Scenery
 
 SIZE = (320, 240)
@@ -279,8 +278,8 @@ def main() -> None:
         candidates(args.envs.split(","), args.candidates)
         return
     start = time.time()
-    print(f"machine: {platform.platform()}, {os.cpu_count()} cores; python {platform.python_version()}, "
-          f"fetch {fetch.__version__}, mujoco {mujoco.__version__}; {args.states} states per task, seed "
+    print(machine_line())
+    print(f"{args.states} states per task, seed "
           f"{args.seed}, frames {SIZE[0]}x{SIZE[1]}\n")
     print(f"| multisampling | shadows | sky | ms per frame (MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}) |"
           "\n|---|---|---|---|")

@@ -1,8 +1,8 @@
 """Reach/Push/PickPlace/Slide-v2 against rollouts recorded from gymnasium-robotics' Fetch*-v4.
 
 The reference (tests/data/v4_reference.npz) was recorded on mujoco 3.11 by
-`python benchmarks/parity_v4.py --record tests/data/v4_reference.npz`, run in the virtualenv
-that `benchmarks/parity_v4.py --venv DIR` makes; this test needs neither that mujoco nor
+`python -m benchmarks.parity_v4 --record tests/data/v4_reference.npz` (from the repository's root), run
+in the virtualenv that `python -m benchmarks.parity_v4 --venv DIR` makes; this test needs neither that mujoco nor
 gymnasium-robotics' env code, so it checks parity on every mujoco version the suite runs on.
 """
 

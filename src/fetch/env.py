@@ -94,7 +94,7 @@ def _compile(task_type: type[Task]) -> _Compiled:
 
 CLASSIC_STARTS = pathlib.Path(__file__).parent / "assets" / "classic_starts.npz"
 """The start state of each classic scene as gymnasium-robotics' Fetch*-v4 computes it on mujoco 3.11
-(`benchmarks/parity_v4.py --record-starts` writes it)."""
+(`python -m tools.classic_starts` writes it, in the mujoco 3.11 virtualenv: tools/classic_starts.py)."""
 
 
 def _settle_classic(model: mujoco.MjModel, data: mujoco.MjData, robot: Robot, task: Task) -> Start:

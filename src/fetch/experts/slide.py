@@ -1,7 +1,7 @@
 """The Slide expert: strike the puck onto a line through the goal, then strike it along that line.
 
 What it relies on (measured on Fetch*-v4's Slide table, friction 0.1, MuJoCo's default pyramidal
-friction cone; benchmarks/slide_reach.py searches what one or two strikes can reach):
+friction cone; experiments/slide_reach.py searches what one or two strikes can reach):
 
 - Friction on the table is not isotropic. A gliding puck decelerates at `DECELERATION` along the
   larger of its x and y velocity components only, the smaller one kept, until both are equal;
@@ -74,8 +74,8 @@ STRIKE_STEPS = 2
 """[steps] a strike is this many steps of one action, from rest 1 cm behind the puck."""
 STRIKE_TABLE = pathlib.Path(__file__).resolve().parent.parent / "assets" / "slide_strikes.npz"
 """How far a strike of each action size sends a puck at rest, by the puck's x and its distance
-across from the robot's centre line (the arm weakens as it stretches either way); measured by
-benchmarks/slide_strikes.py."""
+across from the robot's centre line (the arm weakens as it stretches either way); measured and written by
+tools/slide_strikes.py (`python -m tools.slide_strikes`)."""
 CENTRE_Y = 0.75
 """[m] the y of the robot's centre line (its shoulder)."""
 FIRST_STRIKES = np.arange(0.05, 0.65, 0.025)

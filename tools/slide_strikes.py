@@ -1,8 +1,9 @@
-"""Measure the Slide expert's strike table: how far one strike sends a puck at rest, by where it is.
+"""Write src/fetch/assets/slide_strikes.npz: how far one strike sends a puck at rest, by where it is.
 
-The arm weakens as it stretches, forwards and sideways: at x = 1.2 m a strike of size 0.7 sends
-the puck 29 cm from y = 0.75 m (in front of the shoulder) and 21 cm from y = 0.5 or 1.0 m. So the
-table is indexed by the puck's x and by how far across it is from the robot's centre line.
+The Slide expert plans its strikes from this table (`fetch.experts.slide` reads it). The arm weakens
+as it stretches, forwards and sideways: at x = 1.2 m a strike of size 0.7 sends the puck 29 cm from
+y = 0.75 m (in front of the shoulder) and 21 cm from y = 0.5 or 1.0 m. So the table is indexed by the
+puck's x and by how far across it is from the robot's centre line.
 
 For every grid point (x, |y - 0.75|) and action size, the puck is put there at rest (its joint set
 after a reset), the Slide expert lines up and makes one strike of that size (along +x, or along
@@ -10,17 +11,16 @@ each diagonal), and the puck's displacement once it stops is recorded: along x, 
 diagonal; the mean over y = 0.75 +- across and both diagonals. A grid point the hand cannot strike
 from counts as 0. Sizes are made non-decreasing (a longer strike never plans a shorter shot).
 
-    .venv/bin/python benchmarks/slide_strikes.py                 # ~3 min, writes the table
-    .venv/bin/python benchmarks/slide_strikes.py --out /tmp/t.npz --print
-    .venv/bin/python benchmarks/slide_strikes.py --spread 100        # ~6 min: strikes under action noise 0.1
+    .venv/bin/python -m tools.slide_strikes                       # ~3 min, writes the package's table
+    .venv/bin/python -m tools.slide_strikes --out /tmp/t.npz --print
 
-The table ships as src/fetch/assets/slide_strikes.npz; `fetch.experts.slide` reads it.
-"""
+(from the repository root). How far noisy strikes land from this table: `python -m experiments.slide_spread`."""
 
 from __future__ import annotations
 
 import argparse
 import pathlib
+from collections.abc import Mapping
 
 import gymnasium as gym
 import mujoco
@@ -28,9 +28,8 @@ import numpy as np
 
 import fetch  # noqa: F401  (registers the ids)
 from fetch.experts.base import Stage
-from fetch.experts.slide import CENTRE_Y, STRIKE_TABLE
+from fetch.experts.slide import CENTRE_Y, STRIKE_TABLE, Slide
 from fetch.timing import CONTROL_DT
-from slide_reach import Forced
 
 XS = (0.9, 0.95, 1.0, 1.05, 1.1, 1.15, 1.2, 1.25, 1.3, 1.33, 1.36, 1.39, 1.42)
 """[m] the puck's x."""
@@ -45,11 +44,42 @@ SETTLE_STEPS = 150
 """[steps] at most this long for the line-up, the strike and the glide."""
 
 
+class Forced(Slide):
+    """The Slide expert made to strike along given lines with given action sizes, then stop."""
+
+    def __init__(self, layout: Mapping[str, slice], strikes: list[tuple[tuple[float, float], float]]) -> None:
+        self.strikes = list(strikes)
+        super().__init__(layout)
+
+    def reset(self) -> None:
+        super().reset()
+        self.queue = list(self.strikes)
+        self.forced_size = 0.0
+
+    def plan(self, rest: np.ndarray, goal: np.ndarray, grip: np.ndarray) -> None:
+        if self.stage is Stage.LINE_UP:
+            return
+        if not self.queue:
+            self.finish(grip, goal)
+            return
+        (lx, ly), self.forced_size = self.queue.pop(0)
+        self.line = np.array([lx, ly]) / np.hypot(lx, ly)
+        self.target = goal[:2].copy()
+        self.motion, self.offset = self.contact(self.line)
+        self.advance(Stage.LINE_UP)
+
+    def size(self, distance: float, puck: np.ndarray) -> float:
+        # A negative size scales the expert's own choice (its strike table) by minus that.
+        if self.forced_size < 0.0:
+            return min(-self.forced_size * super().size(distance, puck), 1.0)
+        return self.forced_size
+
+
 def strike(env: gym.Env, xy: tuple[float, float], line: tuple[float, float], size: float,
            noise: float = 0.0, rng: np.random.Generator | None = None) -> np.ndarray | None:
     """The puck's displacement [m, xy] from one strike from rest at `xy`, or None if the hand
     never got to strike; with `noise`, every action (line-up and strike) gets Gaussian noise of
-    that std, as expert_success.py adds it."""
+    that std, as benchmarks/expert_success.py adds it."""
     env.reset(seed=0)
     model, data = env.unwrapped.model, env.unwrapped.data
     joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "object0:joint")
@@ -105,49 +135,11 @@ def measure(kind: str) -> np.ndarray:
     return np.maximum.accumulate(np.round(table, 3), axis=2)
 
 
-SPREAD_FROM = ((1.1, CENTRE_Y), (1.2, CENTRE_Y + 0.15))
-"""[m] where the puck rests before the strikes `spread` measures: in front of the shoulder and out to the side."""
-SPREAD_SIZES = (0.3, 0.5, 0.7, 0.9)
-
-
-def spread(trials: int, noise: float, tolerance: float = 0.05) -> None:
-    """Print how far strikes of each size land from where the same strike lands without noise,
-    under action noise `noise`: what a policy that aims by striking can rely on."""
-    env = gym.make("Slide-v2").unwrapped
-    rng = np.random.default_rng(0)
-    print(f"{trials} strikes per row under action noise {noise} (mujoco {mujoco.__version__}); "
-          f"displacements against the same strike without noise\n")
-    print(f"| puck at [m] | line | size | without noise [cm] | along: mean / std [cm] | across: std [cm] "
-          f"| within {100 * tolerance:.0f} cm of it |")
-    print("|---|---|---|---|---|---|---|")
-    for xy in SPREAD_FROM:
-        for line in ((1.0, 0.0), (1.0, 1.0)):
-            unit = np.asarray(line) / np.hypot(*line)
-            normal = np.array([-unit[1], unit[0]])
-            for size in SPREAD_SIZES:
-                plain = strike(env, xy, line, size)
-                noisy = [strike(env, xy, line, size, noise, rng) for _ in range(trials)]
-                if plain is None:
-                    continue
-                moved = np.array([m for m in noisy if m is not None])
-                along, across = moved @ unit, moved @ normal
-                within = np.linalg.norm(moved - plain, axis=1) < tolerance
-                print(f"| ({xy[0]:.2f}, {xy[1]:.2f}) | {'x' if line[1] == 0 else 'diagonal'} | {size} "
-                      f"| {100 * float(plain @ unit):.1f} | {100 * along.mean():.1f} / {100 * along.std():.1f} "
-                      f"| {100 * across.std():.1f} | {within.sum() / trials:.0%} |", flush=True)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=pathlib.Path, default=STRIKE_TABLE, help="where to write the table")
     parser.add_argument("--print", action="store_true", help="print the tables")
-    parser.add_argument("--spread", type=int, default=0, metavar="TRIALS",
-                        help="instead: how far TRIALS noisy strikes of each size land from the noiseless one")
-    parser.add_argument("--noise", type=float, default=0.1, help="the action noise's std for --spread")
     args = parser.parse_args()
-    if args.spread:
-        spread(args.spread, args.noise)
-        return
     tables = {kind: measure(kind) for kind in TABLES}
     np.savez(args.out, xs=np.array(XS), across=np.array(ACROSS), sizes=np.array(SIZES), **tables)
     print(f"wrote {args.out} (mujoco {mujoco.__version__})")

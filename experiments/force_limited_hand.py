@@ -1,7 +1,7 @@
 """Issue 20's lid: what a hand that pushes with a bounded force would give, tried on a copy of the model.
 
 The seed tasks' hand follows its mocap target through a weld, which pushes as hard as it takes: under
-random full-scale actions the fingers press the lid 37-48 mm into the box and the table (`bench_abuse.py`).
+random full-scale actions the fingers press the lid 37-48 mm into the box and the table (`benchmarks/bench_abuse.py`).
 Here the weld is replaced, in a copy of the compiled model, by six site actuators on `gripper_link`
 with their reference site on the mocap body (a PD towards the target pose, force- and torque-limited),
 with the arm's gravity compensated; the action rule is unchanged (the target is put at the hand's pose
@@ -11,7 +11,7 @@ tilts, and the worst contact penetration and launch under `--steps` random full-
 bench_abuse.py makes and counts them), with the lid's contacts as shipped (MuJoCo's defaults) or the
 room's stiff ones. A trial, not a product: the experts are not run.
 
-    .venv/bin/python benchmarks/force_limited_hand.py --env Box-open-v2 --steps 2000   # ~1 min
+    .venv/bin/python -m experiments.force_limited_hand --env Box-open-v2 --steps 2000   # ~1 min
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ import mujoco
 import numpy as np
 
 import fetch  # noqa: F401  (registers the ids)
-from bench_abuse import measure  # benchmarks/ is the script's directory, so on sys.path
+from benchmarks._machine import machine_line
+from benchmarks.bench_abuse import measure
 from fetch.scene import ROOM_SOLIMP, ROOM_SOLREF, _delete
 from fetch.timing import N_SUBSTEPS
 
@@ -115,7 +116,8 @@ def main() -> None:
     parser.add_argument("--env", default="Box-open-v2", choices=["Box-open-v2", "Box-close-v2"])
     parser.add_argument("--steps", type=int, default=2000)
     args = parser.parse_args()
-    print(f"{args.env}, {args.steps} random full-scale steps; mujoco {mujoco.__version__}\n")
+    print(machine_line())
+    print(f"{args.env}, {args.steps} random full-scale steps\n")
     print("| kp [N/m] | kv [N s/m] | force limit [N] | lid contacts | +x move per step [mm] | after stopping [mm] "
           "| tilt [deg] | worst penetration [mm] | where | fastest launch [m/s] |")
     print("|---|---|---|---|---|---|---|---|---|---|")

@@ -1,8 +1,8 @@
 """Which recording and policy to default to: one training seed, 100 DART expert demos, variants side by side.
 
-    .venv-train/bin/python benchmarks/train_choices.py TASK:VARIANT ... [--results DIR]
+    .venv-train/bin/python -m experiments.train_choices TASK:VARIANT ... [--results DIR]
 
-Uses `learning_curves.py`'s datasets (the same `--results` directory: DART demos to the horizon,
+Uses `benchmarks/learning_curves.py`'s datasets (the same `--results` directory: DART demos to the horizon,
 collected there once) and its training and evaluation (100 episodes on unseen seeds). A variant
 changes one thing from `dart-5k` (mlp-chunk, 5000 steps): `dartstop` ends the demos 10 steps after
 success, `c20` predicts 20-action chunks, `512x3` a wider, deeper MLP, `on05` observation noise
@@ -19,12 +19,10 @@ from __future__ import annotations
 
 import argparse
 import pathlib
-import sys
 import time
 from typing import Any
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-import learning_curves as lc  # noqa: E402
+from benchmarks import learning_curves as lc
 
 PUSH_AUTO = lc.MEASURED_VARIANTS["mlp-chunk-x5-offsets"]
 """What `--policy auto` trained on Push before it took the demos' mirror images too (and 10000 steps),

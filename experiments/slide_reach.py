@@ -9,8 +9,8 @@ the first ends. A seed no plan of the family reaches is counted unreachable *by 
 search bounds what two strikes can do, not what any policy can. The expert itself is also run on
 every seed, plain and under action noise 0.1, and its rate on the seeds the family reaches printed.
 
-    .venv/bin/python benchmarks/slide_reach.py --seeds 100 --first-seed 0     # ~10 min a process
-    .venv/bin/python benchmarks/slide_reach.py --seeds 100 --first-seed 100
+    .venv/bin/python -m experiments.slide_reach --seeds 100 --first-seed 0     # ~10 min a process
+    .venv/bin/python -m experiments.slide_reach --seeds 100 --first-seed 100
 
 Seeds 0-199 (mujoco 4.0.0): one strike reaches 34 %, two strikes 57.5 %, neither 8.5 % (seeds 0,
 18, 56, 61, 85, 93, 107, 112, 122, 132, 133, 148, 159, 165, 168, 179, 180: goals far out and to the
@@ -26,7 +26,6 @@ import argparse
 import copy
 import pickle
 import time
-from collections.abc import Mapping
 
 import gymnasium as gym
 import numpy as np
@@ -34,44 +33,13 @@ import numpy as np
 import fetch  # noqa: F401  (registers the ids)
 from fetch.experts import make_expert
 from fetch.experts.base import Stage
-from fetch.experts.slide import Slide
+from tools.slide_strikes import Forced
 
 SIZES = (0.3, 0.45, 0.6, 0.75, 0.9, 1.0)
 """Action sizes of a first strike."""
 SCALES = (-0.85, -0.9, -0.95, -1.0, -1.05, -1.1, -1.15, 1.0)
 """A strike aimed at the goal: the expert's size (from its strike table) times 0.85..1.15, and 1."""
 HORIZON = 50
-
-
-class Forced(Slide):
-    """The Slide expert made to strike along given lines with given action sizes, then stop."""
-
-    def __init__(self, layout: Mapping[str, slice], strikes: list[tuple[tuple[float, float], float]]) -> None:
-        self.strikes = list(strikes)
-        super().__init__(layout)
-
-    def reset(self) -> None:
-        super().reset()
-        self.queue = list(self.strikes)
-        self.forced_size = 0.0
-
-    def plan(self, rest: np.ndarray, goal: np.ndarray, grip: np.ndarray) -> None:
-        if self.stage is Stage.LINE_UP:
-            return
-        if not self.queue:
-            self.finish(grip, goal)
-            return
-        (lx, ly), self.forced_size = self.queue.pop(0)
-        self.line = np.array([lx, ly]) / np.hypot(lx, ly)
-        self.target = goal[:2].copy()
-        self.motion, self.offset = self.contact(self.line)
-        self.advance(Stage.LINE_UP)
-
-    def size(self, distance: float, puck: np.ndarray) -> float:
-        # A negative size scales the expert's own choice (its strike table) by minus that.
-        if self.forced_size < 0.0:
-            return min(-self.forced_size * super().size(distance, puck), 1.0)
-        return self.forced_size
 
 
 def _finish(env: gym.Env, expert: Forced, obs: dict, steps: int) -> bool:
