@@ -19,17 +19,17 @@ from gymnasium.error import ResetNeeded
 from fetch import observation as ob
 from fetch import rendering
 from fetch.errors import FetchError, UnknownNameError
-from fetch.robot import ACTION_STEP, GRIPPER_QUAT, Robot
+from fetch.robot import GRIPPER_QUAT, Robot, action_rule, checked_actions
 from fetch.scene import build_spec, firm_furniture
 from fetch.tasks import mirroring_ids, task_class
-from fetch.tasks.base import FINGER_PAIRS, Start, Task, goal_distance, mocap_index
+from fetch.tasks.base import FINGER_PAIRS, REWARD_TYPES, Start, Task, goal_distance, mocap_index
+from fetch.tasks.base import reward as task_reward
 from fetch.timing import CONTROL_DT, N_SUBSTEPS
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 """What `get_state` saves: everything `mj_step` reads (qpos, qvel, act, ctrl, mocap, warm start, time)."""
 
 RENDER_MODES = ("human", "rgb_array", "depth_array")
-REWARD_TYPES = ("sparse", "dense")
 SETTLE_STEPS = 50
 """Control steps the arm is given at construction to settle at its start pose."""
 
@@ -244,24 +244,13 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         a = np.asarray(action)
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}")
-        if np.iscomplexobj(a) or not np.issubdtype(a.dtype, np.number):
-            raise ValueError(f"action must be real numbers, got dtype {a.dtype}")
-        if a.dtype != np.float32:
-            a = a.astype(np.float64)
-        if not np.isfinite(a).all():
-            raise ValueError(f"action {a.tolist()} is not finite; a NaN or inf would make the "
-                             "simulation unstable (valid: finite values, clipped to [-1, 1])")
-        # Clipped and scaled in the action's own precision, as the classic suite does: a float32
-        # action moves the target by float32(0.05 * a), a float64 one by the float64 product.
-        a = np.clip(a, -1.0, 1.0)  # the one clip of an action on its way from a device to the physics
+        a = checked_actions(a)  # the one check and clip between a device and the physics
         self.last_action = a
-        self.robot.apply((a[:3] * ACTION_STEP).tolist(), float(a[3]))
+        move, grip = action_rule(a)
+        self.robot.apply(move.tolist(), float(grip))
         self.robot.advance(self.model, self.data)
         obs, info = self._observe()
-        if self.reward_type == "sparse":
-            reward = info["is_success"] - 1.0
-        else:
-            reward = -info["distance"]
+        reward = task_reward(self.reward_type, info["is_success"], info["distance"])
         if self.render_mode == "human":
             self.render()
         return obs, reward, False, False, info
@@ -269,9 +258,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
                        info: Any = None) -> np.ndarray:
         """Sparse: 0 where the goal is reached else -1; dense: -distance [m]. Vectorised."""
-        if self.reward_type == "sparse":
-            return self.task.is_success(achieved_goal, desired_goal) - 1.0
-        return -goal_distance(achieved_goal, desired_goal)
+        return task_reward(self.reward_type, self.task.is_success(achieved_goal, desired_goal),
+                           goal_distance(achieved_goal, desired_goal))
 
     def _observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         # The sensors are current: mj_step1 (step) or mj_forward (reset, set_state) computed

@@ -37,6 +37,34 @@ class Workspace:
             raise ValueError(f"workspace low {self.low} must be below high {self.high} on each of x, y, z")
 
 
+def checked_actions(actions: np.ndarray) -> np.ndarray:
+    """An action (4,) or a batch of them (N, 4) as a step applies it: real numbers, finite, clipped to
+    [-1, 1], in its own precision (float32 stays float32, anything else is float64), as the classic
+    suite does: a float32 action moves the target by float32(0.05 * a), a float64 one by the float64
+    product. The one check and the one clip between a device and the physics, for `FetchEnv.step` and
+    `FetchVectorEnv.step` alike; ValueError naming what is wrong (the rows, for a batch)."""
+    a = np.asarray(actions)
+    if np.iscomplexobj(a) or a.dtype.kind not in "fiu":
+        raise ValueError(f"{'actions' if a.ndim == 2 else 'action'} must be real numbers, got dtype {a.dtype}")
+    if a.dtype != np.float32:
+        a = a.astype(np.float64)
+    if not np.isfinite(a).all():
+        if a.ndim == 2:
+            bad = np.flatnonzero(~np.isfinite(a).all(axis=1)).tolist()
+            raise ValueError(f"actions of worlds {bad} are not finite ({a[bad[0]].tolist()}); a NaN or inf would "
+                             "make the simulation unstable (valid: finite values, clipped to [-1, 1])")
+        raise ValueError(f"action {a.tolist()} is not finite; a NaN or inf would make the "
+                         "simulation unstable (valid: finite values, clipped to [-1, 1])")
+    return np.clip(a, -1.0, 1.0)
+
+
+def action_rule(actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(move [m, world], grip) of checked actions, as float64 (the last axis: x, y, z, gripper): the
+    target moves by `ACTION_STEP * a[:3]`, computed in the action's precision; the fingers are driven
+    by a[3]. `Robot.apply` (one world) and `Robot.apply_batch` (many) take these."""
+    return (actions[..., :3] * ACTION_STEP).astype(np.float64), actions[..., 3].astype(np.float64)
+
+
 @dataclasses.dataclass(frozen=True)
 class RobotConfig:
     """Which scene the robot stands in, where, where its gripper starts and how far it may go.

@@ -13,6 +13,7 @@ from fetch.dataset import schema
 from fetch.dataset.durable import journal_of
 from fetch.dataset.reader import READ_ERRORS, Dataset, one_line, plain_value
 from fetch.errors import DatasetError
+from fetch.tasks.base import goal_distance, reward
 
 
 def header_problems(ds: Dataset) -> list[str]:
@@ -173,16 +174,15 @@ def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dic
 
 
 def _reward_problem(ds: Dataset, arrays: dict[str, h5py.Dataset], rewards: np.ndarray) -> str | None:
-    """Why the rewards are not the env's for the steps recorded, or None: sparse, is_success - 1; dense,
-    minus the distance from the achieved goal to the desired one after the step (`FetchEnv.step`)."""
+    """Why the rewards are not the env's for the steps recorded (`fetch.tasks.base.reward` of each step's
+    success and goal distance after it, as `FetchEnv.step` gives them), or None."""
     reward_type = ds.env_kwargs.get("reward_type", "sparse")
-    if reward_type == "sparse":
-        expected = np.asarray(arrays["is_success"][()], np.float64) - 1.0
-        exact = np.array_equal(rewards, expected)
-    else:
-        achieved, desired = arrays["next_obs/achieved_goal"][()], arrays["next_obs/desired_goal"][()]
-        expected = -np.linalg.norm(np.asarray(achieved, np.float64) - desired, axis=-1)
-        exact = bool(np.allclose(rewards, expected, rtol=0.0, atol=1e-9))
+    success = np.asarray(arrays["is_success"][()], np.float64)
+    distance = goal_distance(arrays["next_obs/achieved_goal"][()], arrays["next_obs/desired_goal"][()])
+    expected = reward(reward_type, success, distance)
+    # Sparse rewards are exact; a dense one is math.dist's, which differs from numpy's in the last bit.
+    exact = np.array_equal(rewards, expected) if reward_type == "sparse" else \
+        bool(np.allclose(rewards, expected, rtol=0.0, atol=1e-9))
     if exact:
         return None
     step = int(np.flatnonzero(~np.isclose(rewards, expected, rtol=0.0, atol=1e-9))[0])

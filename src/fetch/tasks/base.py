@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import abc
 import math
-from typing import TYPE_CHECKING, ClassVar, NamedTuple
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import mujoco
 import numpy as np
@@ -116,6 +116,16 @@ class Task(abc.ABC):
     def facts(self, data: mujoco.MjData, obs: np.ndarray) -> dict[str, float]:
         """Task-specific entries of `info`: the same keys at every step."""
         return {}
+
+
+REWARD_TYPES = ("sparse", "dense")
+
+
+def reward(reward_type: str, success: Any, distance: Any) -> Any:
+    """The reward of a step (or of many, as arrays) from its success (0 or 1) and its goal distance
+    [m]: sparse, 0 where the goal is reached else -1; dense, minus the distance. The one rule of
+    `FetchEnv.step`, `FetchEnv.compute_reward` and `FetchVectorEnv.step`."""
+    return success - 1.0 if reward_type == "sparse" else -distance
 
 
 def goal_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:

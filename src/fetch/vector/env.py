@@ -23,8 +23,8 @@ from gymnasium.vector.utils import batch_space
 from fetch import observation as ob
 from fetch.env import FetchEnv
 from fetch.errors import FetchError, UnknownNameError
-from fetch.robot import ACTION_STEP
-from fetch.tasks.base import mocap_index
+from fetch.robot import action_rule, checked_actions
+from fetch.tasks.base import mocap_index, reward
 from fetch.vector.worlds import StateLayout, Worlds, make_worlds
 
 Obs = dict[str, np.ndarray]
@@ -284,18 +284,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         return a
 
     def _check_actions(self, actions: Any) -> np.ndarray:
-        a = self._check_shape(actions)
-        if a.dtype.kind not in "fiu":  # as FetchEnv.step: no bool, complex or text
-            raise ValueError(f"actions must be real numbers, got dtype {a.dtype}")
-        if a.dtype != np.float32:
-            a = a.astype(np.float64)
-        if not np.isfinite(a).all():
-            finite = np.isfinite(a).all(axis=1)
-            bad = np.flatnonzero(~finite).tolist()
-            raise ValueError(f"actions of worlds {bad} are not finite ({a[bad[0]].tolist()}); a NaN or inf would "
-                             "make the simulation unstable (valid: finite values, clipped to [-1, 1])")
-        # Clipped and scaled in the actions' own precision, as FetchEnv.step does.
-        return np.clip(a, -1.0, 1.0)
+        return checked_actions(self._check_shape(actions))  # FetchEnv.step's check and clip
 
     def _step_worlds(self, ids: np.ndarray | None, a: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
         """One control step of the worlds `ids` (sorted; None: every world), as `FetchEnv.step` does
@@ -306,8 +295,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         rows = worlds.state if ids is None else worlds.state[ids]
         qpos, ctrl = layout.view(rows, "qpos"), layout.view(rows, "ctrl")
         mocap_pos, mocap_quat = layout.view(rows, "mocap_pos"), layout.view(rows, "mocap_quat")
-        robot.apply_batch(mocap_pos, mocap_quat, ctrl, qpos, (a[:, :3] * ACTION_STEP).astype(np.float64),
-                          a[:, 3].astype(np.float64))
+        robot.apply_batch(mocap_pos, mocap_quat, ctrl, qpos, *action_rule(a))
         if ids is not None:
             worlds.state[ids] = rows
         worlds.step(ids)
@@ -382,10 +370,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         info = {"is_success": np.array(success), "distance": np.array(distance)}
         for key in facts[0]:
             info[key] = np.array([f[key] for f in facts], dtype=np.float64)
-        if self.reward_type == "sparse":
-            rewards = info["is_success"] - 1.0
-        else:
-            rewards = -info["distance"]
+        rewards = reward(self.reward_type, info["is_success"], info["distance"])
         return {"observation": vectors, "achieved_goal": achieved, "desired_goal": goals}, rewards, info
 
     def _add_infos(self, infos: dict[str, Any], values: dict[str, np.ndarray], ids: np.ndarray) -> dict[str, Any]:
