@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 
 from benchmarks._machine import machine_line
-from fetch.experts.slide import CENTRE_Y
+from fetch.experts.strikes import CENTRE_Y
 from tools.slide_strikes import strike
 
 SPREAD_FROM = ((1.1, CENTRE_Y), (1.2, CENTRE_Y + 0.15))

@@ -120,7 +120,7 @@ def test_slide_glide_follows_the_pyramidal_friction_rule(velocity: tuple[float, 
     """Only the larger velocity component decelerates until both are equal, so a glide off the axes
     bends towards the diagonal; an isotropic rule (rest along the launch, v^2 / 2a away) misses
     these by 3-15 cm."""
-    from fetch.experts.slide import glide
+    from fetch.experts.strikes import glide
     env, start = _slide_env_with_puck_gliding(velocity)
     puck = env.unwrapped.observation_layout["object_pos"]
     for _ in range(45):
@@ -131,7 +131,7 @@ def test_slide_glide_follows_the_pyramidal_friction_rule(velocity: tuple[float, 
 
 
 def test_slide_launch_inverts_the_glide() -> None:
-    from fetch.experts.slide import glide, launch
+    from fetch.experts.strikes import glide, launch
     for displacement in ([0.5, 0.1], [0.3, -0.4], [0.2, 0.2], [-0.1, 0.05], [0.0, 0.3]):
         np.testing.assert_allclose(glide(launch(np.array(displacement))), displacement, atol=1e-9)
 
@@ -201,7 +201,7 @@ def test_slide_strike_sizes_land_the_puck_where_planned() -> None:
 def test_slide_strikes_as_hard_as_the_arm_needs_where_the_puck_is(y: float) -> None:
     """The arm is weaker to the side: a 30 cm shot along x from y = 0.5 or 1.0 m needs a harder
     strike than from in front of the shoulder (y = 0.75 m); the table knows it, and each lands."""
-    from fetch.experts.slide import strike_size
+    from fetch.experts.strikes import strike_size
 
     env = gym.make("Slide-v2")
     expert = make_expert(env)

@@ -1,6 +1,6 @@
 """Write src/fetch/assets/slide_strikes.npz: how far one strike sends a puck at rest, by where it is.
 
-The Slide expert plans its strikes from this table (`fetch.experts.slide` reads it). The arm weakens
+The Slide expert plans its strikes from this table (`fetch.experts.strikes` reads it). The arm weakens
 as it stretches, forwards and sideways: at x = 1.2 m a strike of size 0.7 sends the puck 29 cm from
 y = 0.75 m (in front of the shoulder) and 21 cm from y = 0.5 or 1.0 m. So the table is indexed by the
 puck's x and by how far across it is from the robot's centre line.
@@ -28,7 +28,8 @@ import numpy as np
 
 import fetch  # noqa: F401  (registers the ids)
 from fetch.experts.base import Stage
-from fetch.experts.slide import CENTRE_Y, STRIKE_TABLE, Slide
+from fetch.experts.slide import Slide
+from fetch.experts.strikes import CENTRE_Y, STRIKE_TABLE
 from fetch.timing import CONTROL_DT
 
 XS = (0.9, 0.95, 1.0, 1.05, 1.1, 1.15, 1.2, 1.25, 1.3, 1.33, 1.36, 1.39, 1.42)

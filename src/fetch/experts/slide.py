@@ -1,27 +1,15 @@
 """The Slide expert: strike the puck onto a line through the goal, then strike it along that line.
 
-What it relies on (measured on Fetch*-v4's Slide table, friction 0.1, MuJoCo's default pyramidal
-friction cone; experiments/slide_reach.py searches what one or two strikes can reach):
+It plans with the puck's physics (`fetch.experts.strikes`: glides bend onto an axis or a diagonal,
+and a measured table of how far a strike sends the puck) and the closed fingers' geometry:
 
-- Friction on the table is not isotropic. A gliding puck decelerates at `DECELERATION` along the
-  larger of its x and y velocity components only, the smaller one kept, until both are equal;
-  then both at half that. From a launch (A, B), A >= B >= 0, it comes to rest (A^2 + B^2) / 2a
-  further along A's axis and A B / a along B's (`glide`): a glide along an axis stays on it, any
-  other bends towards the nearest diagonal, where it stays.
-- Pushed, the puck obeys the same rule: a face of the closed fingers sends it along the face's
-  normal (it rolls along the face) and their outer corner sends it along the diagonal, whichever
-  way the hand moves. So the puck goes along x, along y or along a diagonal, nothing else.
+- A face of the closed fingers sends the puck along the face's normal (it rolls along the face) and
+  their outer corner along the diagonal, whichever way the hand moves. So the puck goes along x,
+  along y or along a diagonal, nothing else.
 - Along x the face is the two fingertips side by side with a slot between them: a puck struck
   at the slot wedges into it and tips up, so an x strike uses one fingertip (`FINGER`); a corner
   strike has the puck's centre `CORNER` past the fingers' side. Both strike with the hand moving
   along x from rest 1 cm behind the puck.
-- A strike is two steps of one action: the mocap target jumps by 5 cm a step at full size and the
-  hand surges, so the puck leaves at up to ~1 m/s, faster than the hand ever moves steadily. How
-  far it then goes was measured against the action's size, the puck's x and how far across it is
-  from the robot's centre line, for each line (x, diagonal, y outwards, y inwards: the arm weakens
-  as it stretches, forwards or sideways, and strikes nothing beyond x ~ 1.39 m): `STRIKE_TABLE`,
-  `strike_size`, `strike_reach`. A table by x alone sent second strikes 5-14 cm short from the
-  sides, or planned them where no strike reached (78.5 % success on seeds 0-199; 90 % now).
 - The plan: from where the puck will rest, a shot if the goal is on an axis or a diagonal from
   it; else a first strike that leaves the goal on one (along x then the diagonal, or along the
   diagonal then x; for goals mostly across, along y then the diagonal), whichever pair the strike
@@ -30,32 +18,39 @@ friction cone; experiments/slide_reach.py searches what one or two strikes can r
 - 50 steps are short: the hand lines up for the next strike while the puck still glides, low
   (below the puck's top) whenever neither the hand's way nor the puck's crosses the other; and
   success is judged at the last step, not at rest, so a shot that would still be gliding then is
-  struck harder, to be near the goal at `horizon` (`hurry`: 80 % instead of 77 % on seeds 0-99).
+  struck harder, to be near the goal at `horizon` (`hurry`).
 - With a `Twin` (what `make_expert` gives it), the expert first plays its plan out in its private
   copy of the task, which is exact while the episode gets the expert's own actions. If the plan
   ends more than `sure` from the goal, it plays first strikes along x, y and the diagonal towards
   the goal, to `FIRST_STRIKES` distances, each followed by its own plan, and strikes first the one
-  that ends nearest. On seeds 0-199 that takes the plain expert from 90.0 to 96 % (the table and
-  its two-strike plans alone run short of time or of the arm's strength far out to the side).
+  that ends nearest (the table and its two-strike plans alone run short of time or of the arm's
+  strength far out to the side).
+
+docs/tasks.md ("Scripted experts") has what each part measured; experiments/slide_reach.py searches
+what one or two strikes can reach.
 """
 
 from __future__ import annotations
 
 import copy
-import functools
-import pathlib
 from collections.abc import Mapping
 
 import numpy as np
 
 from fetch.experts.base import Expert, Stage
+from fetch.experts.strikes import (
+    DECELERATION,
+    RADIUS,
+    STRIKE_STEPS,
+    glide,
+    glide_time,
+    is_diagonal,
+    strike_reach,
+    strike_size,
+)
 from fetch.experts.twin import Twin
 from fetch.timing import CONTROL_DT
 
-DECELERATION = 0.98
-"""[m/s^2] a puck gliding along an axis decelerates this much (friction 0.1 times g)."""
-RADIUS = 0.025
-"""[m] the puck's radius."""
 FRONT = 0.0144
 """[m] the closed fingers' front face, along x from the grip site."""
 SIDES = (0.0152, -0.0166)
@@ -70,94 +65,9 @@ CORNER = 0.0088
 BOX = (np.array([-0.0164, SIDES[1]]), np.array([FRONT, SIDES[0]]))
 """[m] the closed fingers' extent (xy) from the grip site: low, high corners."""
 
-STRIKE_STEPS = 2
-"""[steps] a strike is this many steps of one action, from rest 1 cm behind the puck."""
-STRIKE_TABLE = pathlib.Path(__file__).resolve().parent.parent / "assets" / "slide_strikes.npz"
-"""How far a strike of each action size sends a puck at rest, by the puck's x and its distance
-across from the robot's centre line (the arm weakens as it stretches either way); measured and written by
-tools/slide_strikes.py (`python -m tools.slide_strikes`)."""
-CENTRE_Y = 0.75
-"""[m] the y of the robot's centre line (its shoulder)."""
 FIRST_STRIKES = np.arange(0.05, 0.65, 0.025)
 """[m] how far the first strikes that a twin plays out send the puck (72 plays, ~3 s, where the
 plan falls short)."""
-
-
-@functools.cache
-def _strikes() -> dict[str, np.ndarray]:
-    with np.load(STRIKE_TABLE) as table:
-        return {name: table[name] for name in table.files}
-
-
-def _is_diagonal(line: np.ndarray) -> bool:
-    return bool(line[0] != 0.0 and line[1] != 0.0)
-
-
-def _strike_table(puck: np.ndarray, line: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(sizes, [m] how far a strike of each size along `line` sends a puck at rest at `puck` [m, xy],
-    per axis on a diagonal): the measured table interpolated in x and across. Along y the side face
-    strikes harder towards the centre line than away from it, so each way has its table."""
-    table = _strikes()
-    x, off = float(puck[0]), float(puck[1]) - CENTRE_Y
-    if _is_diagonal(line):
-        rows = table["along_diagonal"]
-    elif line[0] != 0.0:
-        rows = table["along_x"]
-    else:
-        rows = table["along_y_out" if line[1] * off >= 0.0 else "along_y_in"]
-    xs, across = table["xs"], table["across"]
-    i = int(np.clip(np.searchsorted(xs, x) - 1, 0, len(xs) - 2))
-    j = int(np.clip(np.searchsorted(across, abs(off)) - 1, 0, len(across) - 2))
-    u = float(np.clip((x - xs[i]) / (xs[i + 1] - xs[i]), 0.0, 1.0))
-    v = float(np.clip((abs(off) - across[j]) / (across[j + 1] - across[j]), 0.0, 1.0))
-    reach = ((1 - u) * (1 - v) * rows[i, j] + u * (1 - v) * rows[i + 1, j]
-             + (1 - u) * v * rows[i, j + 1] + u * v * rows[i + 1, j + 1])
-    return table["sizes"], reach
-
-
-def strike_size(distance: float, puck: np.ndarray, line: np.ndarray) -> float:
-    """The action size whose strike along `line` (xy) sends a puck at rest at `puck` [m, xy]
-    `distance` [m] before it stops; if that is beyond any strike, the smallest size that strikes
-    furthest."""
-    per_axis = distance / np.sqrt(2.0) if _is_diagonal(line) else distance
-    sizes, reach = _strike_table(puck, line)
-    # Where the table stops growing (a harder strike sent the puck no further) it strikes no harder.
-    top = int(np.argmax(reach >= reach[-1])) + 1
-    return float(np.interp(per_axis, reach[:top], sizes[:top]))
-
-
-def strike_reach(puck: np.ndarray, line: np.ndarray) -> float:
-    """[m] the furthest a strike along `line` (xy) sends a puck at rest at `puck` [m, xy]."""
-    furthest = float(_strike_table(puck, line)[1][-1])
-    return furthest * np.sqrt(2.0) if _is_diagonal(line) else furthest
-
-
-def _glide_time(distance: float, diagonal: bool, short: float = 0.0) -> float:
-    """[s] how long a puck struck to glide `distance` [m] (along an axis or the diagonal) takes to
-    come within `short` [m] of where it stops."""
-    distance, short = max(distance, 0.0), min(max(short, 0.0), max(distance, 0.0))
-    if diagonal:  # each axis decelerates at half the rate, over 1 / sqrt(2) of the distance
-        return 2.0 * float(np.sqrt(DECELERATION * distance / np.sqrt(2.0))
-                           - np.sqrt(DECELERATION * short / np.sqrt(2.0))) / DECELERATION
-    return float(np.sqrt(2.0 * DECELERATION * distance) - np.sqrt(2.0 * DECELERATION * short)) / DECELERATION
-
-
-def glide(velocity: np.ndarray) -> np.ndarray:
-    """[m] where a puck moving at `velocity` [m/s, world xy] comes to rest, from where it is."""
-    a, b = abs(float(velocity[0])), abs(float(velocity[1]))
-    major, minor = (a * a + b * b) / (2.0 * DECELERATION), a * b / DECELERATION
-    rest = np.array([major, minor]) if a >= b else np.array([minor, major])
-    return rest * np.sign(velocity[:2])
-
-
-def launch(displacement: np.ndarray) -> np.ndarray:
-    """[m/s] the velocity whose glide ends `displacement` [m, world xy] away (`glide`'s inverse)."""
-    x, y = abs(float(displacement[0])), abs(float(displacement[1]))
-    s = np.sqrt(2.0 * DECELERATION * (x + y))
-    t = np.sqrt(2.0 * DECELERATION * abs(x - y))
-    major, minor = (s + t) / 2.0, (s - t) / 2.0
-    speed = np.array([major, minor]) if x >= y else np.array([minor, major])
-    return speed * np.where(np.asarray(displacement[:2]) < 0, -1.0, 1.0)
 
 
 class Slide(Expert):
@@ -318,7 +228,7 @@ class Slide(Expert):
             [s] how long the two glides take)."""
             first, second = float(np.linalg.norm(target - rest)), float(np.linalg.norm(goal - target))
             short = max(first - strike_reach(rest, line), second - strike_reach(target, then), 0.0)
-            time = _glide_time(first, _is_diagonal(line)) + _glide_time(second, _is_diagonal(then), self.arrived)
+            time = glide_time(first, is_diagonal(line)) + glide_time(second, is_diagonal(then), self.arrived)
             return line, target, short, time
 
         def rank(candidate: tuple[np.ndarray, np.ndarray, float, float]) -> tuple[float, float]:
@@ -402,11 +312,11 @@ class Slide(Expert):
         """[m] how far the strike should send the puck to rest, for it to be within reach of the
         goal `distance` [m] away by the episode's last step: further than the goal if a glide that
         stops there would still be on its way (success is judged at the last step, not at rest)."""
-        diagonal = _is_diagonal(self.line)
+        diagonal = is_diagonal(self.line)
         left = (self.horizon - self.steps - STRIKE_STEPS) * CONTROL_DT
         if not np.array_equal(self.target, self.goal) or left <= 0.0:
             return distance
-        if _glide_time(distance, diagonal, self.arrived) <= left:
+        if glide_time(distance, diagonal, self.arrived) <= left:
             return distance
         # Be `arrived` short of the goal at the last step, still gliding: along an axis
         # x(t) = v t - a t^2 / 2; on the diagonal each axis does that at a / 2.
