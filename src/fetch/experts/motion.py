@@ -33,9 +33,8 @@ class Push(Expert):
     clear = 0.1
     """[m] ...and back away to this far from it."""
     speed = 0.8
-    """[1] the push's largest action. Policies learnt from its demos measured a little better than
-    from pushes at 0.6 (78.7 against 75.0 % on learning_curves.py's 100 episodes, 80.9 against 79.9 %
-    over 500; 3 training seeds each); at 1.0 the block strays more and they fell to 67 %."""
+    """[1] the push's largest action: policies learnt from its demos measured a little better than from
+    slower pushes, and worse from faster ones, where the block strays more (docs/training.md)."""
 
     def line(self, obs: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
         """Grip, object and goal positions [m], the object's xy distance to the goal [m], and the
