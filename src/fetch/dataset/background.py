@@ -31,6 +31,18 @@ _FLUSH = ("", None)
 """Queued by `flush`: publish what is saved."""
 
 
+def require_writable(directory: pathlib.Path) -> None:
+    """DatasetError now, before an attempt is made, unless files can be made in `directory`: without
+    write access (a read-only dataset, as a user other than its owner; root writes through) the
+    collector ran the attempt and failed at its first save. A hidden file made and removed tells."""
+    probe = directory / f".probe-{os.getpid()}.tmp"
+    try:
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as e:
+        raise DatasetError(f"cannot write in {directory}: {why(e)} (nothing was recorded)") from e
+
+
 class BackgroundWriter:
     """Saves demos from a thread, so committing never stalls the control loop; one per directory.
 
@@ -50,6 +62,7 @@ class BackgroundWriter:
             self.out_dir.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise DatasetError(f"cannot create the output directory {self.out_dir}: {e.strerror}") from e
+        require_writable(self.out_dir)
         self._lock_file = self._lock()
         self.attempts = 0
         self.saved = 0

@@ -26,7 +26,7 @@ import numpy as np
 
 from fetch._durable import atomic_write
 from fetch.dataset import schema
-from fetch.dataset.background import BackgroundWriter
+from fetch.dataset.background import BackgroundWriter, require_writable
 from fetch.dataset.demo_file import hdf5_bytes, read_demo_group, write_demo_file
 from fetch.dataset.durable import finish_rewrites
 from fetch.dataset.episode import Demo
@@ -103,6 +103,7 @@ class DatasetWriter(BackgroundWriter):
         self.created = time.time()
         try:
             self.episodes_dir.mkdir(exist_ok=True)
+            require_writable(self.episodes_dir)
             if self.index_path.exists():
                 self._resume()
             else:
