@@ -160,6 +160,7 @@ TOOLS: dict[str, tuple[list[str], str | None]] = {
                         "--image-size", "64"], "av"),
     "view": (["view", "{d}", "--out", "{t}/out", "--size", "64", "--workers", "2"], "av"),
     "train": (["train", "{d}", "--out", "{t}/out", "--steps", "3000"], "torch"),
+    "eval": (["eval", "{run}", "--episodes", "2000", "--envs", "50"], "torch"),
 }
 """Every other tool, stopped the same way ~1 s after it starts: past its imports, in its work for all but
 the quickest (which may have finished: exit 0 is then the right answer)."""
@@ -174,11 +175,15 @@ def test_every_tool_stops_on_a_group_ctrl_c_and_loses_nothing(pick_demos: pathli
     if needs is not None:
         pytest.importorskip(needs)
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
-    data, other = tmp_path / "pick", tmp_path / "pick2"
+    data, other, run = tmp_path / "pick", tmp_path / "pick2", tmp_path / "run"
     shutil.copytree(pick_demos, data)
     shutil.copytree(pick_demos, other)
+    if tool == "eval":  # a policy to evaluate, trained for a few steps
+        made = subprocess.run(_cli("train", str(data), "--out", str(run), "--steps", "20", "--hidden", "16"),
+                              capture_output=True, text=True, timeout=300)
+        assert made.returncode == 0, made.stderr[-800:]
     code, stdout, stderr, left = _stop_group(
-        _cli(*(a.format(d=data, d2=other, t=tmp_path) for a in argv)), ready=None, delay=1.0, twice=twice)
+        _cli(*(a.format(d=data, d2=other, t=tmp_path, run=run) for a in argv)), ready=None, delay=1.0, twice=twice)
     assert code in (*STOPPED, 0), (code, stderr[-800:])
     assert "Traceback" not in stderr, stderr[-1500:]
     assert left == []
