@@ -8,7 +8,7 @@ import functools
 import hashlib
 import math
 import pathlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple, SupportsFloat
 
 import gymnasium as gym
@@ -16,8 +16,8 @@ import mujoco
 import numpy as np
 from gymnasium.error import ResetNeeded
 
+from fetch import camera_obs, rendering
 from fetch import observation as ob
-from fetch import rendering
 from fetch.errors import FetchError, UnknownNameError
 from fetch.robot import GRIPPER_QUAT, Robot, action_rule, checked_actions
 from fetch.scene import build_spec, firm_furniture
@@ -146,13 +146,16 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     Action: Box(-1, 1, (4,)): dx, dy, dz move the gripper's target by up to 5 cm per step
     (world frame); a[3] opens (+1) or closes (-1) the fingers. dt = 0.04 s.
     `model`, `data` are the MjModel / MjData; `observation_layout` names the observation's slices.
+    `cameras` adds each camera's `image_size` x `image_size` uint8 RGB image of the observed state to the
+    observation, as "<camera>_image" (camera_obs.py; `hide_goal` hides the marker there too).
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": round(1.0 / CONTROL_DT)}
 
     def __init__(self, task: str = "pick_place", reward_type: str = "sparse",
                  render_mode: str | None = None, width: int = 480, height: int = 480,
-                 camera_name: str = "front", hide_goal: bool = False) -> None:
+                 camera_name: str = "front", hide_goal: bool = False, cameras: Sequence[str] = (),
+                 image_size: int = camera_obs.DEFAULT_IMAGE_SIZE) -> None:
         if reward_type not in REWARD_TYPES:
             raise UnknownNameError("reward_type", reward_type, REWARD_TYPES)
         if render_mode is not None and render_mode not in RENDER_MODES:
@@ -161,7 +164,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             raise FetchError(f"width and height must be positive pixels, got {width}x{height}")
         self._kwargs = dict(task=task, reward_type=reward_type, render_mode=render_mode,
                             width=int(width), height=int(height), camera_name=camera_name,
-                            hide_goal=hide_goal)
+                            hide_goal=hide_goal, cameras=cameras, image_size=image_size)
         compiled = _compile(task_class(task))
         self.task: Task = task_class(task)()
         self.model: mujoco.MjModel = copy.copy(compiled.model)
@@ -173,6 +176,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._start_state = compiled.start_state
         self._start = compiled.start
         rendering.check_camera(self.model, camera_name)
+        names = camera_obs.check_cameras(self.model, cameras, image_size)
+        self._images = camera_obs.CameraImages(self.model, names, int(image_size), hide_goal) if names else None
         self.reward_type = reward_type
         self.render_mode = render_mode
         self.width, self.height = int(width), int(height)
@@ -191,6 +196,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "observation": box(shape=(self._observer.size,)),
             "achieved_goal": box(shape=(goal_size,)),
             "desired_goal": box(shape=(goal_size,)),
+            **(self._images.spaces() if self._images is not None else {}),
         })
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self._state_buf = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
@@ -275,7 +281,10 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "distance": distance,
         }
         info.update(self.task.facts(d, vector))
-        return {"observation": vector, "achieved_goal": achieved.copy(), "desired_goal": desired}, info
+        obs = {"observation": vector, "achieved_goal": achieved.copy(), "desired_goal": desired}
+        if self._images is not None:  # of the state just observed: present() or mj_forward made it current
+            obs.update(self._images.render(d))
+        return obs, info
 
     # -- MuJoCo state --------------------------------------------------------------------
 
@@ -358,7 +367,14 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         return self._renderer.render(self.data, self.camera_name,
                                      depth=self.render_mode == "depth_array", hide_goal=self.hide_goal)
 
+    def images(self, states: np.ndarray) -> dict[str, np.ndarray]:
+        """(N, H, W, 3) uint8 images per camera of N states of `get_state` ({} without `cameras`), as the
+        observations of those states hold them. The env is left in the last state."""
+        return {} if self._images is None else self._images.render_states(states, self.set_state, self.data)
+
     def close(self) -> None:
+        if self._images is not None:
+            self._images.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None

@@ -34,11 +34,13 @@ def check_image_size(size: int, flag: str) -> None:
 
 
 def check_camera_list(cameras: Sequence[str], flag: str = "--cameras") -> None:
-    """FetchError if a camera is named twice (each is recorded once, under its name)."""
+    """FetchError if a camera is named twice (each is recorded once, under its name); `flag` is the CLI
+    flag or the keyword argument (`cameras=`, an env's) that named them."""
     twice = sorted({c for c in cameras if list(cameras).count(c) > 1})
     if twice:
-        raise FetchError(f"{flag} names {', '.join(twice)} more than once; list each camera once, e.g. "
-                         f"--cameras {','.join(dict.fromkeys(cameras))}")
+        once = tuple(dict.fromkeys(cameras))
+        example = f"{flag} {','.join(once)}" if flag.startswith("-") else f"{flag}={once}"
+        raise FetchError(f"{flag} names {', '.join(twice)} more than once; list each camera once, e.g. {example}")
 
 
 def camera_names(model: mujoco.MjModel) -> tuple[str, ...]:

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from fetch.camera_obs import image_key  # the env's observation key is the dataset's
+
 FORMAT = "gym-fetch-v2/demos"
 FORMAT_VERSION = 1
 INDEX_NAME = "demos.hdf5"
@@ -96,10 +98,6 @@ def meant_actions(arrays: Mapping[str, Any]) -> np.ndarray:
     """A demo's (T, 4) actions to learn from: `expert_actions` where recorded, else `actions` (the
     device meant what it sent). Every export carries them beside the applied `actions`."""
     return np.asarray(arrays["expert_actions"] if "expert_actions" in arrays else arrays["actions"], np.float32)
-
-
-def image_key(camera: str) -> str:
-    return f"{camera}_image"
 
 
 DEMO_ATTRS: tuple[tuple[str, str], ...] = (

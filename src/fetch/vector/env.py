@@ -21,6 +21,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from fetch import observation as ob
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.env import FetchEnv
 from fetch.errors import FetchError, UnknownNameError
 from fetch.robot import action_rule, checked_actions
@@ -42,9 +43,9 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
     CPU; mujoco >= 4.0, else one after another). Gymnasium's VectorEnv API: batched Dict
     observations, rewards, terminated/truncated and infos with `_key` masks, as `SyncVectorEnv`.
 
-    `max_episode_steps` truncates as `gym.make`'s TimeLimit; `autoreset_mode` is one of Gymnasium's
-    `AutoresetMode`s; `render()` renders the worlds in `render_worlds` (default: all); the other
-    keyword arguments are `FetchEnv`'s (`render_mode` "human" excepted).
+    `max_episode_steps` truncates as `gym.make`'s TimeLimit; `autoreset_mode` is one of Gymnasium's `AutoresetMode`s;
+    `render()` renders the worlds in `render_worlds` (default: all); the other keyword arguments are `FetchEnv`'s
+    (`render_mode` "human" excepted; with `cameras`, each world's images are the template's renders of its state).
     """
 
     metadata: dict[str, Any] = {"render_modes": list(RENDER_MODES), "render_fps": FetchEnv.metadata["render_fps"],
@@ -54,7 +55,8 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
                  reward_type: str = "sparse", render_mode: str | None = None, width: int = 480,
                  height: int = 480, camera_name: str = "front", hide_goal: bool = False,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, nthread: int = 0,
-                 render_worlds: Sequence[int] | None = None) -> None:
+                 render_worlds: Sequence[int] | None = None, cameras: Sequence[str] = (),
+                 image_size: int = DEFAULT_IMAGE_SIZE) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise FetchError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
         self.num_envs = int(num_envs)
@@ -71,8 +73,8 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         self.render_worlds = self._check_worlds(render_worlds)
 
         # The template: validates the env's own arguments, resets one world at a time and renders.
-        self._env = FetchEnv(task=task, reward_type=reward_type, render_mode=render_mode, width=width,
-                             height=height, camera_name=camera_name, hide_goal=hide_goal)
+        self._env = FetchEnv(task=task, reward_type=reward_type, render_mode=render_mode, width=width, height=height,
+                             camera_name=camera_name, hide_goal=hide_goal, cameras=cameras, image_size=image_size)
         env = self._env
         self.task, self.robot, self.model = env.task, env.robot, env.model
         self.reward_type = reward_type
@@ -81,8 +83,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.single_observation_space = env.observation_space
         self.observation_space = batch_space(env.observation_space, self.num_envs)
-        self.single_action_space = env.action_space
-        self.action_space = batch_space(env.action_space, self.num_envs)
+        self.single_action_space, self.action_space = env.action_space, batch_space(env.action_space, self.num_envs)
         self.observation_layout = dict(env.observation_layout)
 
         self._worlds: Worlds = make_worlds(self.model, self.num_envs, self.robot.hand, int(nthread))
@@ -239,9 +240,8 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         return self._worlds.state[world].copy()
 
     def set_state(self, world: int, state: np.ndarray) -> None:
-        """Restore world `world` to a state from `get_state` (of this or a single env of the same id),
-        as `FetchEnv.set_state`: its next step is the one that state's env would take. Its episode's
-        step count is kept."""
+        """Restore world `world` to a state from `get_state` (of this or a single env of the same id), as
+        `FetchEnv.set_state`: its next step is the one that state's env would take; its step count is kept."""
         (world,) = self._check_worlds([world])
         state = np.asarray(state, dtype=np.float64)
         if state.shape != self._worlds.state.shape[1:]:
@@ -318,7 +318,8 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         if ids is not None:
             worlds.state[ids] = rows
         goals = layout.view(rows, "mocap_pos")[:, self._goal_mocap].copy()
-        return self._observe(worlds.sensordata[sel], goals, layout.view(rows, "qpos"))
+        obs, rewards, info = self._observe(worlds.sensordata[sel], goals, layout.view(rows, "qpos"))
+        return {**obs, **self._env.images(rows)}, rewards, info  # images: the template renders each world
 
     def _step_one(self, action: np.ndarray) -> tuple[Obs, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """`step` of one world: nothing to spread over threads, and numpy's cost per call exceeds
@@ -384,7 +385,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         return infos
 
     def _empty_obs(self, n: int) -> Obs:
-        return {key: np.zeros((n, *space.shape), dtype=np.float64)  # type: ignore[misc]
+        return {key: np.zeros((n, *space.shape), dtype=space.dtype)  # type: ignore[misc]
                 for key, space in self.single_observation_space.spaces.items()}  # type: ignore[attr-defined]
 
     def _check_worlds(self, worlds: Sequence[int] | None) -> list[int]:
