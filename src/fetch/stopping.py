@@ -35,6 +35,10 @@ class _State:
     """the stop is being acted on (the saves are being finished)."""
     hook: Any = sys.unraisablehook
     """the unraisable-exception hook to restore, and to pass what is not a stop to."""
+    deferring = False
+    """a dropped stop's re-delivery is being set up (`_dropped`): a stop now is deferred to it."""
+    deferred = False
+    """a stop came while `deferring`."""
 
 
 _STATE = _State()
@@ -45,6 +49,9 @@ REDELIVER = 0.02
 
 
 def _stop(signum: int, frame: FrameType | None) -> None:
+    if _STATE.deferring:  # inside `_dropped`, where an exception would be dropped again
+        _STATE.requested, _STATE.deferred = signum, True
+        return
     if _STATE.handled:
         os.write(2, b"still finishing the saves; they will complete, then the session stops\n")
         return
@@ -59,9 +66,18 @@ def _dropped(unraisable: Any) -> None:
     as if no Ctrl-C had come. The signal is delivered again
     once out of it; anything else goes to the hook before."""
     if isinstance(unraisable.exc_value, Stopped) and not _STATE.handled:
-        timer = threading.Timer(REDELIVER, os.kill, (os.getpid(), unraisable.exc_value.signum))
-        timer.daemon = True
-        timer.start()
+        # On a loaded machine the timer's thread can take longer than REDELIVER to start, and its signal
+        # then arrives while this hook still runs: it is deferred to the next timer, not raised here.
+        signum = unraisable.exc_value.signum
+        _STATE.deferred = True
+        while _STATE.deferred:
+            _STATE.deferring, _STATE.deferred = True, False
+            try:
+                timer = threading.Timer(REDELIVER, os.kill, (os.getpid(), signum))
+                timer.daemon = True
+                timer.start()
+            finally:
+                _STATE.deferring = False
         return
     _STATE.hook(unraisable)
 
