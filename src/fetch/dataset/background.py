@@ -187,8 +187,8 @@ class BackgroundWriter:
             self._complete(name, demo)
         except OSError as e:
             # `name` is saved (listed in the index); what failed is only what is added after the fact.
-            self._images_failed = (name, self._reason(e))
-            self.error = DatasetError(f"could not add {name}'s images in {self.out_dir}: {self._reason(e)}; "
+            self._images_failed = (name, why(e))
+            self.error = DatasetError(f"could not add {name}'s images in {self.out_dir}: {self._images_failed[1]}; "
                                       f"{self._images_note(name)}, and the demos saved before are intact")
         except BaseException as e:  # a KeyboardInterrupt from a worker comes back through its future
             self.error = e
@@ -200,12 +200,8 @@ class BackgroundWriter:
     def _save(self, name: str, demo: Demo) -> None:
         raise NotImplementedError
 
-    @staticmethod
-    def _reason(e: OSError) -> str:
-        return why(e)
-
     def _describe(self, name: str, e: OSError) -> str:
-        return f"could not save {name} in {self.out_dir}: {self._reason(e)}; the demos saved before are intact"
+        return f"could not save {name} in {self.out_dir}: {why(e)}; the demos saved before are intact"
 
     def _describe_unpublished(self, names: list[str], e: OSError) -> str:
         """Why the saved demos `names` could not be published (`_publish` failed)."""

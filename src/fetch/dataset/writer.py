@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 import h5py
 import numpy as np
 
-from fetch._durable import atomic_write
+from fetch._durable import atomic_write, why
 from fetch.dataset import schema
 from fetch.dataset.background import BackgroundWriter, require_writable
 from fetch.dataset.demo_file import hdf5_bytes, read_demo_group, write_demo_file
@@ -300,7 +300,7 @@ class DatasetWriter(BackgroundWriter):
     def _describe_unpublished(self, names: list[str], e: OSError) -> str:
         files, them = ((f"{names[0]}'s file is", "it") if len(names) == 1
                        else (f"the files of {names[0]} to {names[-1]} are", "them"))
-        return (f"could not save {names[0]} in {self.out_dir}: {self._reason(e)} while the index was rewritten; "
+        return (f"could not save {names[0]} in {self.out_dir}: {why(e)} while the index was rewritten; "
                 f"{files} kept in {schema.EPISODES_DIR}/ and the next session in this directory takes {them} in, "
                 "and the demos saved before are intact")
 

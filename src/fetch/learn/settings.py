@@ -86,13 +86,13 @@ class TrainRequest:
     goal_offsets: bool | None = None
     velocities: bool | None = None
     mirror: bool | None = None
-    demos: int = 0
-    batch_size: int = 256
-    lr: float = 1e-3
-    obs_noise: float = 0.0
-    seed: int = 0
-    checkpoint_every: int = 1000
-    threads: int = 1
+    demos: int = TrainConfig.demos
+    batch_size: int = TrainConfig.batch_size
+    lr: float = TrainConfig.lr
+    obs_noise: float = TrainConfig.obs_noise
+    seed: int = TrainConfig.seed
+    checkpoint_every: int = TrainConfig.checkpoint_every
+    threads: int = TrainConfig.threads
     start_from: str | os.PathLike[str] | None = None
     """a run whose policy this one goes on training (`--from`): its settings, weights and normalisation."""
 
