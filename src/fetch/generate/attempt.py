@@ -15,6 +15,7 @@ import numpy as np
 
 from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.formats import recorded_layout
+from fetch.dataset.frames import StateRenderer
 from fetch.dataset.habits import SQUEEZE
 from fetch.errors import FetchError, UnknownNameError
 from fetch.experts.base import Expert
@@ -81,6 +82,10 @@ class Result(NamedTuple):
     choices: tuple[tuple[str, int, int], ...]
     """per subtask executed: (source demo, first step, end step)."""
     demo: Demo | None
+    images: dict[str, np.ndarray]
+    """per camera asked for, the (T + 1, size, size, 3) uint8 images of the demo's `states` (rendered
+    where the attempt was made; `obs/` holds all but the last, `next_obs/` all but the first); none
+    for a failed attempt."""
 
 
 FINGERTIPS = 0.02
@@ -119,10 +124,11 @@ def rng_for(seed: int, number: int) -> np.random.Generator:
 
 class Generator:
     """Makes attempts in one env from a fixed set of source segments (`sources[d][k]`: demo d's
-    segment of subtask k)."""
+    segment of subtask k). With `cameras`, a successful attempt's images are rendered from its states at
+    `image_size` [px], as `collect --cameras` and `render-obs` render them (`StateRenderer`)."""
 
     def __init__(self, env_id: str, env_kwargs: dict[str, Any], sources: Sequence[Sequence[Segment]],
-                 options: Options, seed: int) -> None:
+                 options: Options, seed: int, cameras: tuple[str, ...] = (), image_size: int = 0) -> None:
         if options.max_steps is None:
             raise FetchError("Options.max_steps must be set before attempts are made (generate sets it)")
         self.max_steps: int = options.max_steps
@@ -136,6 +142,8 @@ class Generator:
         self.sources = sources
         self.options = options
         self.seed = seed
+        self.env_kwargs, self.cameras, self.image_size = env_kwargs, cameras, image_size
+        self._renderer: StateRenderer | None = None  # made at the first success that needs images
         self.scene = Scene(base.model)
         self.buffer = EpisodeBuffer(recorded_layout(self.env), capacity=self.max_steps)
         self._obs: dict[str, np.ndarray] = {}  # the env's latest observation
@@ -239,7 +247,17 @@ class Generator:
                              "ended": time.time()})
             labels = annotate(base, self.subtasks, demo.arrays["states"], demo.arrays["actions"][:, 3]).labels
             demo.arrays["subtasks"] = labels
-        return Result(number, seed, success, steps, tuple(choices), demo)
+        images = self.render(demo.arrays["states"]) if demo is not None else {}
+        return Result(number, seed, success, steps, tuple(choices), demo, images)
+
+    def render(self, states: np.ndarray) -> dict[str, np.ndarray]:
+        """Each camera's (N, size, size, 3) images of N saved states; a separate env's, so the attempts'
+        own env is never restored to a state."""
+        if not self.cameras:
+            return {}
+        if self._renderer is None:
+            self._renderer = StateRenderer(self.env_id, self.env_kwargs, self.image_size, self.image_size)
+        return {camera: self._renderer.frames(states, camera) for camera in self.cameras}
 
     def _step(self, target: np.ndarray, grip: float, opening: float | None, rng: np.random.Generator,
               held_for: int) -> tuple[bool, int]:
@@ -272,4 +290,7 @@ class Generator:
         return Expert.finger_servo(self._obs, self.base.observation_layout, opening)
 
     def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
         self.env.close()

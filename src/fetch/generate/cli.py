@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.dataset.reader import FILE_HELP
+from fetch.rendering import CAMERAS
 
 SUBTASKS_HELP = "cut a dataset's demos into their task's subtasks and print where each begins"
 
@@ -39,6 +41,11 @@ def add_generate_parser(sub: Any) -> None:
                    help="std of the noise on the executed action, action units; the clean action is recorded as "
                         "expert_actions, what training learns (DART; default %(default)s; 0: none)")
     g.add_argument("--max-attempts", type=int, default=None, help="give up after this many (default 50 per demo)")
+    g.add_argument("--cameras", default="",
+                   help=f"record these cameras' images too, comma-separated ({', '.join(CAMERAS)}), rendered from "
+                        "each demo's states in the workers as collect --cameras records them; default none")
+    g.add_argument("--image-size", type=int, default=DEFAULT_IMAGE_SIZE,
+                   help=f"recorded image width and height [px] (default {DEFAULT_IMAGE_SIZE})")
     g.set_defaults(run=run_generate)
     s = sub.add_parser("subtasks", help=SUBTASKS_HELP)
     s.add_argument("file", help=FILE_HELP)
@@ -52,8 +59,10 @@ def run_generate(args: argparse.Namespace) -> int:
 
     options = Options(max_steps=args.max_steps, success_hold_steps=args.success_hold_steps, selection=args.selection,
                       nearest_k=args.nearest_k, noise=args.noise, stop_on_success=args.stop_on_success)
+    cameras = tuple(c.strip() for c in args.cameras.split(",") if c.strip())  # as collect's --cameras
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
-                            workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray)
+                            workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray,
+                            cameras=cameras, image_size=args.image_size)
     summary = generate(config)
     print(summary.describe())
     return 1 if summary.gave_up else 0

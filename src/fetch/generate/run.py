@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import pathlib
 import sys
 import time
 from collections.abc import Callable
@@ -17,6 +18,8 @@ from typing import Any
 
 import gymnasium as gym
 
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE, check_cameras
+from fetch.dataset import schema
 from fetch.dataset.dirs import require_apart
 from fetch.dataset.formats import open_writer
 from fetch.dataset.reader import open_dataset
@@ -24,6 +27,7 @@ from fetch.errors import FetchError
 from fetch.generate.attempt import Options, Result
 from fetch.generate.sources import Sources, load_sources
 from fetch.generate.workers import Backend, Pool, RayCluster, Serial, Work, default_workers
+from fetch.rendering import check_camera_list, check_image_size
 
 MAX_SEED = 2**62
 LOW_YIELD = (200, 0.05)
@@ -48,6 +52,10 @@ class GenerateConfig:
     """None: no Ray; "local": start a Ray instance here; else a cluster's address ("auto", "ray://...")."""
     nice: int = 0
     """niceness of the worker processes (not Ray's)."""
+    cameras: tuple[str, ...] = ()
+    """record these cameras' images too (`obs/<camera>_image`, `next_obs/...`), rendered in the workers."""
+    image_size: int = DEFAULT_IMAGE_SIZE
+    """[px] the images' width and height."""
 
     def __post_init__(self) -> None:
         if self.demos < 1:
@@ -60,6 +68,10 @@ class GenerateConfig:
             raise FetchError(f"--max-attempts must be at least 1, got {self.max_attempts}")
         if not str(self.out).strip():
             raise FetchError("--out must name a directory (it is empty)")
+        if isinstance(self.cameras, str):
+            raise FetchError(f"cameras must be a sequence of camera names, e.g. cameras=({self.cameras!r},)")
+        check_image_size(self.image_size, "--image-size")  # as collect's: checked with no cameras too
+        check_camera_list(self.cameras)
 
 
 @dataclasses.dataclass
@@ -106,6 +118,22 @@ def _resume_point(out: str) -> tuple[int, int | None]:
         return len(ds.demo_names), max(int(ds.attrs(n)["attempt"]) for n in ds.demo_names)
 
 
+def _images(cameras: tuple[str, ...], size: int) -> str:
+    return f"--cameras {','.join(cameras)} --image-size {size}" if cameras else "no --cameras"
+
+
+def require_same_images(out: str, cameras: tuple[str, ...], size: int) -> None:
+    """One line naming both when `out` holds a dataset recorded with other cameras or another image size
+    (the writer refuses every difference, this one among them, but in several lines)."""
+    if not (pathlib.Path(out) / schema.INDEX_NAME).is_file():
+        return
+    with open_dataset(out) as ds:
+        had = (ds.layout.cameras, ds.layout.image_size if ds.layout.cameras else 0)
+    if had != (cameras, size if cameras else 0):
+        raise FetchError(f"{out} holds demos with {_images(*had)}, this run asks for {_images(cameras, size)}; "
+                         "use the same, or another --out")
+
+
 def make_backend(config: GenerateConfig, work: Work) -> Backend:
     if config.ray is not None:
         return RayCluster(work, None if config.ray == "local" else config.ray, config.workers)
@@ -125,9 +153,14 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
         say(f"{len(sources.skipped)} source demo(s) could not be cut into {', '.join(sources.subtasks)} "
             f"and are not used: {', '.join(sources.skipped[:5])}")
     env = gym.make(sources.env_id, max_episode_steps=options.max_steps, **sources.env_kwargs)
-    writer = open_writer("hdf5", config.out, env, settings=settings_of(sources, options, config.seed),
-                         device="generate")
-    env.close()
+    try:
+        base: Any = env.unwrapped
+        cameras = check_cameras(base.model, config.cameras, config.image_size)
+        require_same_images(config.out, cameras, config.image_size)
+        writer = open_writer("hdf5", config.out, env, settings=settings_of(sources, options, config.seed),
+                             device="generate", cameras=cameras, image_size=config.image_size)
+    finally:
+        env.close()
     try:
         have, last = _resume_point(config.out)
         first = 0 if last is None else last + 1
@@ -136,7 +169,7 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
         if have >= config.demos:
             return summary
         limit = config.max_attempts or 50 * config.demos
-        backend = make_backend(config, Work(sources, options, config.seed))
+        backend = make_backend(config, Work(sources, options, config.seed, cameras, config.image_size))
         summary.workers = backend.workers
         started = time.perf_counter()
         bar = _Bar(config.demos, have)
@@ -180,6 +213,9 @@ def _commit(writer: Any, result: Result, previous: int | None) -> None:
         source_demos=json.dumps([c[0] for c in result.choices]),
         source_segments=json.dumps([[c[1], c[2]] for c in result.choices]),
         generation_attempts=result.number - (-1 if previous is None else previous))
+    for camera, frames in result.images.items():  # rendered in the worker: the writer renders none
+        key = schema.image_key(camera)
+        demo.arrays[f"obs/{key}"], demo.arrays[f"next_obs/{key}"] = frames[:-1], frames[1:]
     writer.commit(demo)
 
 

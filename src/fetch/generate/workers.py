@@ -40,10 +40,20 @@ class Work:
     sources: Sources
     options: Options
     seed: int
+    cameras: tuple[str, ...] = ()
+    """whose images each successful attempt renders, in the worker (checked by `generate`)."""
+    image_size: int = 0
+    """[px] their width and height."""
 
     def generator(self) -> Generator:
         s = self.sources
-        return Generator(s.env_id, s.env_kwargs, s.segments, self.options, self.seed)
+        return Generator(s.env_id, s.env_kwargs, s.segments, self.options, self.seed, self.cameras, self.image_size)
+
+
+def _one_gl_thread() -> None:
+    """In a worker process: software GL (llvmpipe) renders with one thread, as the render workers do
+    (`dataset.frames`), so that K workers on K cores do not contend; unless the user set it."""
+    os.environ.setdefault("LP_NUM_THREADS", "1")
 
 
 class Backend(Protocol):
@@ -83,6 +93,7 @@ def _init_worker(work: Work, nice: int, parent: int) -> None:
     start_worker(parent)  # Ctrl-C reaches the whole process group: the driver stops the pool
     if nice:
         os.nice(nice)
+    _one_gl_thread()
     _worker = work.generator()
 
 
@@ -212,6 +223,7 @@ class RayCluster:
 
 class _RayWorker:
     def __init__(self, work: Work) -> None:
+        _one_gl_thread()
         self.generator = work.generator()
 
     def run(self, first: int, count: int) -> list[Result]:
