@@ -519,7 +519,8 @@ def test_the_python_api_trains_what_the_command_trains(torch, reach: pathlib.Pat
     assert main(["train", str(reach), "--out", str(tmp_path / "cli"), "--steps", "20"]) == 0  # not TINY: defaults
     result = train(reach, tmp_path / "api", TrainRequest(steps=20), show_progress=False, log=lambda _: None)
     cli, api = _checkpoint(torch, tmp_path / "cli"), _checkpoint(torch, tmp_path / "api")
-    assert cli["policy"] == api["policy"] == {**result.plan.policy.as_dict(), "obs_size": api["policy"]["obs_size"]}
+    assert cli["policy"] == api["policy"] == {**result.plan.policy.as_dict(), "obs_size": api["policy"]["obs_size"],
+                                              "image_size": 0}
     assert cli["train"] == api["train"]
     assert all(torch.equal(cli["model"][k], api["model"][k]) for k in cli["model"])
 
@@ -642,7 +643,7 @@ def test_train_says_what_it_is_about_to_do_at_once_and_how_long_it_takes(torch, 
     from fetch.learn import data
 
     read = data.load_demos
-    monkeypatch.setattr(data, "load_demos", lambda path: (time.sleep(1.5), read(path))[1])
+    monkeypatch.setattr(data, "load_demos", lambda path, images=False: (time.sleep(1.5), read(path, images))[1])
     capsys.readouterr()
     assert _train(reach, tmp_path / "run", "--steps", "40", "--policy", "mlp-chunk") == 0
     lines = capsys.readouterr().err.splitlines()

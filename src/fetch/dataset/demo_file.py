@@ -38,12 +38,13 @@ def write_demo_group(group: h5py.Group, demo: Demo) -> None:
         group.create_dataset(key, data=array, **options)
 
 
-def read_demo_group(group: h5py.Group) -> Demo:
-    """A saved demo, loaded (the inverse of `write_demo_group`)."""
+def read_demo_group(group: h5py.Group, keep: Callable[[str], bool] | None = None) -> Demo:
+    """A saved demo, loaded (the inverse of `write_demo_group`); only the arrays whose path `keep` takes,
+    where it is given."""
     arrays: dict[str, np.ndarray] = {}
 
     def visit(path: str, node: Any) -> None:
-        if isinstance(node, h5py.Dataset):
+        if isinstance(node, h5py.Dataset) and (keep is None or keep(path)):
             arrays[path] = node[()]
 
     group.visititems(visit)

@@ -7,6 +7,7 @@ import dataclasses
 import json
 import os
 import pathlib
+from collections.abc import Callable
 from typing import Any
 
 import h5py
@@ -168,12 +169,13 @@ class Dataset:
             return self.path.parent / link.filename, link.path
         return self.path, f"data/{name}"
 
-    def arrays(self, name: str) -> dict[str, np.ndarray]:
-        """Every array of one demo, loaded, keyed by its path in the demo group."""
+    def arrays(self, name: str, keep: Callable[[str], bool] | None = None) -> dict[str, np.ndarray]:
+        """Every array of one demo (or those whose path `keep` takes), loaded, keyed by its path in the demo
+        group."""
 
         group = self.demo(name)
         try:
-            return read_demo_group(group).arrays
+            return read_demo_group(group, keep).arrays
         except READ_ERRORS as e:
             raise DatasetError(f"{self.path}: demo {name!r} cannot be read: {one_line(e)}") from e
 

@@ -12,8 +12,8 @@ from typing import Any
 from fetch._progress import said_if_slow
 from fetch.errors import FetchError
 from fetch.learn import TORCH_INSTALL, require_torch
-from fetch.learn.kinds import KINDS, POLICY_KINDS
-from fetch.learn.settings import AUTO, CORRECTION_WEIGHT, TrainRequest
+from fetch.learn.kinds import INPUTS, KINDS, POLICY_KINDS
+from fetch.learn.settings import ACCELERATORS, AUTO, CORRECTION_WEIGHT, TrainRequest, sees_pixels
 from fetch.tasks import REGISTRATIONS, Training, mirroring_ids
 
 
@@ -27,6 +27,11 @@ def _auto_values(field: str) -> str:
     plain = getattr(Training(), field)
     return ", ".join(f"{getattr(r.training, field)} on {r.env_id}" for r in REGISTRATIONS
                      if getattr(r.training, field) not in (plain, None))
+
+
+def _pixel_training(field: str) -> Any:
+    """The pixel kind's default for a training setting."""
+    return next(k.training[field] for k in KINDS if k.inputs == "pixels")
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
@@ -49,14 +54,24 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                         f"{_auto_values('members')}; goal offsets, velocities, chunks and mirror images where "
                         "--goal-offsets, --velocities, --chunk and --mirror say. "
                         + "; ".join(f"{k.name}: {k.summary}" for k in KINDS))
+    p.add_argument("--inputs", default="state", choices=INPUTS,
+                   help="what the policy sees: state (default): the observation and the goal; pixels: the camera "
+                        "images the dataset holds (collect/generate --cameras, render-obs), the robot's own readings "
+                        "(hand position and velocity, finger opening) and the goal, nothing of the objects' state "
+                        "(--policy auto: cnn-chunk; docs/training.md)")
+    p.add_argument("--cameras", type=_camera_list, default=None, metavar="NAMES",
+                   help="--inputs pixels: the cameras it sees, comma-separated (default: every camera the dataset "
+                        "has images of)")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial weights and the batches (default 0)")
     length = p.add_mutually_exclusive_group()
     length.add_argument("--steps", type=int, default=None,
-                        help=f"gradient steps (default {Training().steps}; {_auto_values('steps')})")
+                        help=f"gradient steps (default {Training().steps}; {_auto_values('steps')}; --inputs pixels "
+                             f"{_pixel_training('steps')})")
     length.add_argument("--epochs", type=int, default=None,
                         help="passes over the training examples, instead of --steps")
     p.add_argument("--demos", type=int, default=0, help="train on the first N demos of mask/train (default 0: all)")
-    p.add_argument("--batch-size", type=int, default=256, help="examples per step (default 256)")
+    p.add_argument("--batch-size", type=int, default=None,
+                   help=f"examples per step (default 256; --inputs pixels {_pixel_training('batch_size')})")
     p.add_argument("--lr", type=float, default=1e-3, help="peak learning rate, cosine decay to 0 (default 1e-3)")
     p.add_argument("--chunk", type=int, default=None,
                    help=f"mlp-chunk: actions per prediction (default 10; --policy auto: {_auto_values('chunk')})")
@@ -84,25 +99,36 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                    help="std of noise on the normalised observations while training (default 0)")
     p.add_argument("--checkpoint-every", type=int, default=1000,
                    help="steps between checkpoints and validation losses (default 1000)")
-    p.add_argument("--threads", type=int, default=1,
-                   help="torch threads (default 1; results are reproducible for a given count)")
+    p.add_argument("--accelerator", default="auto", choices=ACCELERATORS,
+                   help="where to train: auto (default) is CUDA where torch sees a GPU, else the CPU; running a "
+                        "policy stays on the CPU (docs/training.md)")
+    p.add_argument("--threads", type=int, default=None,
+                   help="torch threads, 0 for one per core (default 1; --inputs pixels 0; results are reproducible "
+                        "for a given count)")
+
+
+def _camera_list(text: str) -> tuple[str, ...]:
+    return tuple(c.strip() for c in text.split(",") if c.strip())
 
 
 def run_train(args: argparse.Namespace) -> int:
     require_torch()
+    from fetch.learn import checkpoint
     from fetch.learn.data import load_many
     from fetch.learn.train import train
 
     request = TrainRequest(**{f.name: getattr(args, f.name) for f in dataclasses.fields(TrainRequest)})
+    base = checkpoint.read(request.start_from) if request.start_from is not None else None
     with said_if_slow(f"reading {', '.join(args.dataset)} ..."):
-        demos = load_many(args.dataset, args.correction_weight)
+        demos = load_many(args.dataset, args.correction_weight, images=sees_pixels(request, base))
     result = train(demos, args.out, request)
     policy, config = result.plan.policy, result.plan.config
     valid = "none (no valid split)" if result.valid_loss is None else f"{result.valid_loss:.4f}"
     resumed = f", resumed at step {result.resumed_from}" if result.resumed_from else ""
     members = f" ({policy.members} members)" if policy.members > 1 else ""
     mirrored = " and their mirror images" if config.mirror else ""
-    mirrored += ", not seeing velocities" if policy.blind else ""
+    mirrored += f", seeing {', '.join(policy.cameras)}" if policy.cameras else ""
+    mirrored += ", not seeing velocities" if policy.blind and not policy.cameras else ""
     print(f"trained {policy.kind}{members} on {len(demos.train[:config.demos or None])} {demos.env_id} demos"
           f"{mirrored} for {result.steps} steps{resumed}: train loss {result.train_loss:.4f}, valid loss {valid}; "
           f"evaluate with: gym-fetch eval {args.out}")

@@ -27,6 +27,10 @@ the object's position, which `observation` already holds)."""
 
 GRIP = slice(0, 3)
 """Where the grip site's position is in every task's observation: first (tests/test_envs.py holds it)."""
+PROPRIOCEPTION = ("grip_pos", "gripper_state", "grip_velp", "gripper_vel")
+"""The parts of every task's observation a real Fetch knows about itself: where its hand is and how fast
+it moves, how far its fingers are open and how fast they move. A pixel policy sees these, the goal and
+the camera images, and nothing else of the state."""
 
 
 def flat_obs(obs: Mapping[str, np.ndarray], goal_offsets: bool = False, blind: Sequence[int] = ()) -> np.ndarray:
@@ -56,6 +60,21 @@ def velocity_columns(layout: Mapping[str, slice]) -> tuple[int, ...]:
     return tuple(i for name, part in layout.items() if "vel" in name for i in range(part.start, part.stop))
 
 
+def unseen_by_pixels(layout: Mapping[str, slice] | None, goal_offsets: bool) -> tuple[int, ...]:
+    """The entries of the policy's input (`flat_obs`) a pixel policy does not see: every part of the
+    observation but `PROPRIOCEPTION` and, with goal offsets, the goal relative to the achieved goal (the
+    object's position in disguise). It sees the goal, and the goal relative to its hand."""
+    if not layout or any(name not in layout for name in PROPRIOCEPTION):
+        raise DatasetError(f"a pixel policy needs the observation's layout with {', '.join(PROPRIOCEPTION)}; "
+                           f"this task's is {sorted(layout or {})}")
+    size = max(part.stop for part in layout.values())
+    seen = {i for name in PROPRIOCEPTION for i in range(layout[name].start, layout[name].stop)}
+    unseen = [i for i in range(size) if i not in seen]
+    if goal_offsets:
+        unseen += list(range(size + 3, size + 6))  # desired - achieved
+    return tuple(unseen)
+
+
 def with_goal_offsets(x: np.ndarray, achieved: np.ndarray) -> np.ndarray:
     """`x` (the observation, then the desired goal) followed by desired - achieved and desired - grip.
 
@@ -83,6 +102,8 @@ class Episode:
     person drove)."""
     corrected: bool = False
     """A stretch of an attempt that a person took over from a policy (`--device takeover`)."""
+    images: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    """camera -> (T, H, W, 3) uint8: its image at each step, where the demos were loaded with images."""
 
 
 def policy_inputs(episode: Episode, goal_offsets: bool, blind: Sequence[int] = ()) -> np.ndarray:
@@ -105,6 +126,10 @@ class Demos:
     """Every reset seed in the dataset (all demos, kept failures too): evaluation avoids them."""
     origins: tuple[str, ...] = ()
     """Every dataset file the demos came from, where they came from several (`load_many`)."""
+    cameras: tuple[str, ...] = ()
+    """The cameras whose images every demo holds (`Episode.images` where loaded with images)."""
+    image_size: int = 0
+    """[px] their side."""
 
     @property
     def horizon(self) -> int:
@@ -121,10 +146,11 @@ def needed_horizon(env_id: str, episodes: Sequence[Episode]) -> int:
     return max(registered_horizon(env_id), needed)
 
 
-def load_demos(path: str | os.PathLike[str]) -> Demos:
+def load_demos(path: str | os.PathLike[str], images: bool = False) -> Demos:
     """The successful demos of a dataset (file or collector directory): `mask/train` to learn from and
     `mask/valid` to validate on; of attempts a person corrected (`--device takeover`), the stretches the
-    person drove, failed attempts' too."""
+    person drove, failed attempts' too. With `images`, each demo's camera images too (for a pixel
+    policy; they take memory: 21 kB per step and camera at 84 x 84)."""
     from fetch.dataset import open_dataset
     from fetch.dataset.validation import require_valid
 
@@ -137,32 +163,40 @@ def load_demos(path: str | os.PathLike[str]) -> Demos:
         seeds = frozenset(int(ds.attrs(n)["seed"]) for n in ds.demo_names)
         # A failed attempt that a person corrected still holds what they did where they drove.
         corrected = [n for n in masks.get("failed", []) if "intervention" in ds.demo(n)]
-        train = _episodes(ds, masks["train"]) + _episodes(ds, corrected)
-        valid = _episodes(ds, masks["valid"])
+        cameras = ds.layout.cameras if images else ()
+        train = _episodes(ds, masks["train"], cameras) + _episodes(ds, corrected, cameras)
+        valid = _episodes(ds, masks["valid"], cameras)
         env_id, env_kwargs = ds.env_id, dict(ds.env_kwargs)
         where = ds.path.resolve()
+        image_size = ds.layout.image_size if cameras else 0
     if not train:
         raise DatasetError(f"{where}: mask/train lists no demo with a step; a policy needs at least one")
-    return Demos(str(where), env_id, env_kwargs, train, valid, seeds)
+    return Demos(str(where), env_id, env_kwargs, train, valid, seeds, cameras=cameras, image_size=image_size)
 
 
-def load_many(paths: Sequence[str | os.PathLike[str]], correction_weight: int = 1) -> Demos:
+def load_many(paths: Sequence[str | os.PathLike[str]], correction_weight: int = 1, images: bool = False) -> Demos:
     """The demos of several datasets of one task, as one (`gym-fetch train D1 D2 ...`): the original demos
     and the attempts a person corrected (`--device takeover`). Each training stretch a person drove is
-    repeated `correction_weight` times (corrections are few beside the demos they correct)."""
+    repeated `correction_weight` times (corrections are few beside the demos they correct). With
+    `images`, the cameras all of them hold, at one size."""
     if correction_weight < 1:
         raise DatasetError(f"--correction-weight must be a whole number >= 1, got {correction_weight}")
-    loaded = [load_demos(p) for p in paths]
+    loaded = [load_demos(p, images) for p in paths]
     first = loaded[0]
     for other in loaded[1:]:
         if (other.env_id, other.env_kwargs) != (first.env_id, first.env_kwargs):
             raise DatasetError(f"{other.origin} holds {other.env_id} {other.env_kwargs} demos and {first.origin} "
                                f"{first.env_id} {first.env_kwargs}: a policy learns one task; train on datasets "
                                "of the same task and settings")
+        if images and other.cameras and first.cameras and other.image_size != first.image_size:
+            raise DatasetError(f"{other.origin} holds {other.image_size} px images and {first.origin} "
+                               f"{first.image_size} px: a pixel policy learns from images of one size")
+    cameras = tuple(c for c in first.cameras if all(c in d.cameras for d in loaded))
     train = tuple(e for d in loaded for e in d.train for _ in range(correction_weight if e.corrected else 1))
     return Demos(first.origin if len(loaded) == 1 else " + ".join(d.origin for d in loaded), first.env_id,
                  first.env_kwargs, train, tuple(e for d in loaded for e in d.valid),
-                 frozenset().union(*(d.seeds for d in loaded)), tuple(d.origin for d in loaded))
+                 frozenset().union(*(d.seeds for d in loaded)), tuple(d.origin for d in loaded),
+                 cameras, first.image_size if cameras else 0)
 
 
 def with_reflections(demos: Demos) -> Demos:
@@ -203,23 +237,34 @@ def learnt_steps(arrays: Mapping[str, np.ndarray], layout: Mapping[str, slice] |
     return ~still
 
 
-def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
+def _episodes(ds: object, names: Sequence[str], cameras: Sequence[str] = ()) -> tuple[Episode, ...]:
     from fetch.dataset.reader import Dataset, runs
-    from fetch.dataset.schema import meant_actions
+    from fetch.dataset.schema import image_key, meant_actions
 
     assert isinstance(ds, Dataset)
     out = []
     layout = layout_of(ds.env_id)
+    wanted = {f"obs/{image_key(c)}" for c in cameras}
+
+    def needed(path: str) -> bool:
+        """Images are most of a demo's bytes: only those a pixel policy sees are read."""
+        return not path.endswith(image_key("")) or path in wanted
+
     for name in names:
         attrs = ds.attrs(name)
         if int(attrs["num_samples"]) == 0:
             continue
-        arrays = ds.arrays(name)
+        arrays = ds.arrays(name, needed)
         keep = learnt_steps(arrays, layout)
         obs = flat_obs({k: arrays[f"obs/{k}"] for k in OBS_KEYS})
         # A demo recorded under DART noise learns the expert's clean action, not the perturbed one it executed.
         actions = meant_actions(arrays)
         achieved = np.asarray(arrays["obs/achieved_goal"], np.float32)
+        missing = [c for c in cameras if f"obs/{image_key(c)}" not in arrays]
+        if missing:
+            raise DatasetError(f"{ds.path}: {name} has no images of {', '.join(missing)}; render them with "
+                               f"`gym-fetch render-obs {ds.path} --camera {missing[0]} --size {ds.layout.image_size}`")
+        images = {c: arrays[f"obs/{image_key(c)}"] for c in cameras}
         if "intervention" in arrays:
             # A corrected attempt teaches what the person did where they drove (HG-DAgger): each stretch
             # is an episode of its own, so no chunk of targets runs from one correction into the next.
@@ -229,10 +274,11 @@ def _episodes(ds: object, names: Sequence[str]) -> tuple[Episode, ...]:
                 mine[a:b] = keep[a:b]
                 if mine.any():
                     out.append(Episode(f"{name} (takeover {i + 1})", int(attrs["seed"]), obs[mine], actions[mine],
-                                       achieved[mine], None, corrected=True))
+                                       achieved[mine], None, corrected=True,
+                                       images={c: v[mine] for c, v in images.items()}))
             continue
         out.append(Episode(name, int(attrs["seed"]), obs[keep], actions[keep], achieved[keep],
-                           first_success(arrays["is_success"])))
+                           first_success(arrays["is_success"]), images={c: v[keep] for c, v in images.items()}))
     return tuple(out)
 
 

@@ -23,22 +23,40 @@ class PolicyDevice:
     name = "policy"
 
     def __init__(self, env: Any, run_dir: str | os.PathLike[str]) -> None:
+        import torch
+
         from fetch.learn import load
 
+        # One observation at a time runs fastest on one thread: a pixel policy's step took 2 ms on one
+        # and 16 ms on two cores that the renderer and the window also use (docs/training.md).
+        torch.set_num_threads(1)
         self.policy = load(run_dir)
         env_id = env.spec.id if getattr(env, "spec", None) is not None else None
         if env_id is not None and env_id != self.policy.env_id:
             raise FetchError(f"the policy in {run_dir} was trained on {self.policy.env_id}, not {env_id}; "
                              f"collect with --env {self.policy.env_id}")
+        self._env = env.unwrapped
+        self._cameras: Any = None
+        if self.policy.config.cameras:
+            # A pixel policy's images are rendered here, from the state the observation describes, as the env
+            # renders them with cameras=, in the look it learnt from (its hide_goal); the dataset keeps its own.
+            from fetch.camera_obs import CameraImages, check_cameras
+
+            cameras = check_cameras(self._env.model, self.policy.config.cameras, self.policy.config.image_size)
+            self._cameras = CameraImages(self._env.model, cameras, self.policy.config.image_size,
+                                         bool(self.policy.env_kwargs.get("hide_goal", False)))
 
     def reset(self) -> None:
         self.policy.reset()
 
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
+        if self._cameras is not None:
+            obs = {**obs, **self._cameras.render(self._env.data)}
         return Command(self.policy(obs))
 
     def close(self) -> None:
-        pass
+        if self._cameras is not None:
+            self._cameras.close()
 
 
 def add_policy_arguments(p: Any) -> None:

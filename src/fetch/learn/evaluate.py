@@ -133,7 +133,8 @@ def evaluate(policy: Any, episodes: int, *, envs: int = 50, seed_start: int = EV
     at_registered: list[bool] = []
     ever: list[bool] = []
     first: list[int] = []
-    vec = make_vector_env(policy.env_id, count, policy.env_kwargs, horizon)
+    vec = make_vector_env(policy.env_id, count, {**policy.env_kwargs, **getattr(policy, "observation_kwargs", {})},
+                          horizon)
     try:
         for wave in range(0, episodes, count):
             wave_seeds = seeds[wave:wave + count]
@@ -173,7 +174,7 @@ def record_videos(policy: Any, seeds: list[int], out_dir: str | pathlib.Path, *,
     out.mkdir(parents=True, exist_ok=True)
     written = []
     env: Any = gym.make(policy.env_id, render_mode="rgb_array", width=size, height=size, camera_name=camera,
-                        **policy.env_kwargs)
+                        **policy.env_kwargs, **getattr(policy, "observation_kwargs", {}))
     try:
         horizon = int(getattr(policy, "horizon", None) or (env.spec.max_episode_steps if env.spec else 50) or 50)
         for seed in seeds:

@@ -28,6 +28,12 @@ class PolicyKind:
     """its settings where they differ from `PolicySettings`' defaults."""
     implementation: str
     """its torch side, "module:attribute" (`fetch._references`): a `fetch.learn.policies.Kind`."""
+    training: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    """how it trains unless told, where that differs from `TrainConfig`'s defaults and the task's steps
+    (`steps`, `batch_size`, `threads`: 0 is one per core)."""
+    inputs: str = "state"
+    """what it sees: "state" (the observation vector and the goal) or "pixels" (camera images, the
+    robot's own readings and the goal: `fetch.learn.data.PROPRIOCEPTION`)."""
 
 
 KINDS: tuple[PolicyKind, ...] = (
@@ -37,7 +43,15 @@ KINDS: tuple[PolicyKind, ...] = (
     PolicyKind("mlp-chunk", "an MLP predicting chunks of actions with ACT's temporal ensembling, ~7x faster to "
                "train", own=("chunk", "ensemble_decay"), defaults={},
                implementation="fetch.learn.policies:CHUNKED"),
+    PolicyKind("cnn-chunk", "sees camera images (a small convolutional encoder per camera, trained from scratch on "
+               "randomly shifted images), the robot's own readings and the goal, not the objects' state; predicts "
+               "chunks of actions as mlp-chunk", own=("chunk", "ensemble_decay", "cameras"), defaults={},
+               implementation="fetch.learn.pixels:PIXEL_CHUNK", inputs="pixels",
+               # convolutions over images: a quarter of the batch, and every core (docs/training.md)
+               training={"steps": 6000, "batch_size": 64, "threads": 0}),
 )
+INPUTS = ("state", "pixels")
+"""What a policy can see (`PolicyKind.inputs`; `gym-fetch train --inputs`)."""
 POLICY_KINDS: tuple[str, ...] = tuple(k.name for k in KINDS)
 _BY_NAME = {k.name: k for k in KINDS}
 
@@ -73,7 +87,10 @@ class PolicySettings:
     """also see the goal relative to the achieved goal and to the grip site (`data.with_goal_offsets`)."""
     blind: tuple[int, ...] = ()
     """entries of the input the policy does not see (set to 0 before normalising): the observation's
-    velocities with `--no-velocities` (`data.velocity_columns`)."""
+    velocities with `--no-velocities` (`data.velocity_columns`); for a pixel policy, every entry but the
+    robot's own readings and the goal (`data.unseen_by_pixels`)."""
+    cameras: tuple[str, ...] = ()
+    """pixel policies: the cameras whose images it sees, in this order (the dataset's `<camera>_image`)."""
 
     def __post_init__(self) -> None:
         kind(self.kind)
@@ -86,6 +103,15 @@ class PolicySettings:
         if not isinstance(self.goal_offsets, bool):
             raise FetchError(f"goal_offsets must be true or false, got {self.goal_offsets!r}")
         object.__setattr__(self, "blind", tuple(self.blind))  # a checkpoint may hold a list
+        object.__setattr__(self, "cameras", tuple(self.cameras))
+        pixels = kind(self.kind).inputs == "pixels"
+        if pixels and not self.cameras:
+            raise FetchError(f"a {self.kind} policy sees camera images: name at least one camera")
+        if not pixels and self.cameras:
+            raise FetchError(f"a {self.kind} policy sees the state, not cameras ({', '.join(self.cameras)}); "
+                             "a pixel policy: --inputs pixels")
+        if not all(isinstance(c, str) and c for c in self.cameras) or len(set(self.cameras)) != len(self.cameras):
+            raise FetchError(f"cameras must be distinct camera names, got {list(self.cameras)}")
         if not all(isinstance(i, int) and i >= 0 for i in self.blind):
             raise FetchError(f"blind must list input entries (whole numbers >= 0), got {list(self.blind)}")
         if not self.ensemble_decay >= 0:
@@ -105,11 +131,16 @@ class PolicyConfig(PolicySettings):
     """A policy's settings and the size of its input: all a network is built from."""
 
     obs_size: int = dataclasses.field(default=0, kw_only=True)
+    image_size: int = dataclasses.field(default=0, kw_only=True)
+    """[px] the side of the square camera images a pixel policy sees (0: it sees none)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if not isinstance(self.obs_size, int) or self.obs_size < 1:
             raise FetchError(f"policy obs_size must be a whole number >= 1, got {self.obs_size!r}")
+        if not isinstance(self.image_size, int) or self.image_size < 0 or bool(self.cameras) != (self.image_size > 0):
+            raise FetchError(f"policy image_size must be the images' side in pixels (0 without cameras), got "
+                             f"{self.image_size!r}")
         if not all(i < self.obs_size for i in self.blind):
             raise FetchError(f"blind must list input entries 0..{self.obs_size - 1}, got {list(self.blind)}")
 
@@ -125,5 +156,5 @@ class PolicyConfig(PolicySettings):
     def settings(self) -> PolicySettings:
         """These settings without the input size."""
         raw = self.as_dict()
-        del raw["obs_size"]
+        del raw["obs_size"], raw["image_size"]
         return PolicySettings(**raw)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Sequence
-from typing import Any, Protocol, cast
+from typing import Any, NamedTuple, Protocol, cast
 
 import numpy as np
 import torch
@@ -71,8 +71,8 @@ class Members(nn.Module):
         network = implementation(config.kind).network
         self.nets = nn.ModuleList(network(config) for _ in range(config.members))
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return torch.stack([net(x) for net in self.nets])
+    def forward(self, x: torch.Tensor, *images: torch.Tensor) -> torch.Tensor:
+        return torch.stack([net(x, *images) for net in self.nets])
 
     def step(self, x: torch.Tensor, hidden: list[torch.Tensor] | None) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """The recurrent members' `step`, each with its own hidden state."""
@@ -86,26 +86,61 @@ class Members(nn.Module):
 
 @dataclasses.dataclass(frozen=True)
 class Samples:
-    """Training examples of one policy kind: inputs X, targets Y, and which targets exist M."""
+    """Training examples of one policy kind: inputs X, targets Y, and which targets exist M; for a pixel
+    policy, the camera images of each example (one (N, H, W, 3) uint8 array per camera) and what it does
+    not see of the state, normalised (N, len(blind)): its encoder's auxiliary targets."""
 
     x: np.ndarray
     y: np.ndarray
     m: np.ndarray
+    images: tuple[np.ndarray, ...] = ()
+    unseen: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.x)
 
+    def tensors(self) -> Batch:
+        """All of them as tensors, sharing memory with the arrays."""
+        return Batch(torch.from_numpy(self.x), torch.from_numpy(self.y), torch.from_numpy(self.m),
+                     tuple(torch.from_numpy(v) for v in self.images),
+                     None if self.unseen is None else torch.from_numpy(self.unseen))
+
+
+class Batch(NamedTuple):
+    """Examples as tensors (`Samples.tensors`), or some of them (`take`)."""
+
+    x: torch.Tensor
+    y: torch.Tensor
+    m: torch.Tensor
+    images: tuple[torch.Tensor, ...]
+    unseen: torch.Tensor | None
+
+    def take(self, index: torch.Tensor | slice) -> Batch:
+        return Batch(self.x[index], self.y[index], self.m[index], tuple(v[index] for v in self.images),
+                     None if self.unseen is None else self.unseen[index])
+
+    def to(self, device: torch.device) -> Batch:
+        if device.type == "cpu":
+            return self
+        return Batch(self.x.to(device), self.y.to(device), self.m.to(device), tuple(v.to(device) for v in self.images),
+                     None if self.unseen is None else self.unseen.to(device))
+
 
 def samples(config: PolicyConfig, episodes: Sequence[Episode], normalize: Any) -> Samples:
     """Every training example of `episodes`, inputs normalised by `normalize`."""
-    examples = implementation(config.kind).examples
+    kind_ = implementation(config.kind)
     xs, ys, ms = [], [], []
     for e in episodes:
-        x, y, m = examples(config, normalize(policy_inputs(e, config.goal_offsets, config.blind)), e.actions)
+        x, y, m = kind_.examples(config, normalize(policy_inputs(e, config.goal_offsets, config.blind)), e.actions)
         xs.append(x)
         ys.append(y)
         ms.append(m)
-    return Samples(np.concatenate(xs), np.concatenate(ys), np.concatenate(ms))
+    images = tuple(np.concatenate([e.images[c] for e in episodes]) for c in config.cameras)
+    unseen = None
+    if kind_.learns_unseen and config.blind:
+        whole = np.concatenate([policy_inputs(e, config.goal_offsets) for e in episodes])[:, list(config.blind)]
+        unseen = ((whole - whole.mean(axis=0)) / np.maximum(whole.std(axis=0), 1e-2)).astype(np.float32)
+    return Samples(np.concatenate(xs), np.concatenate(ys), np.concatenate(ms), images, unseen)
 
 
 def build(config: PolicyConfig) -> nn.Module:
@@ -122,19 +157,25 @@ def masked_loss(config: PolicyConfig, prediction: torch.Tensor, target: torch.Te
     return (error * weights).sum() / (weights.sum() * ACTION_SIZE).clamp_min(1.0)
 
 
+def behaviour_loss(config: PolicyConfig, model: nn.Module, batch: Batch) -> torch.Tensor:
+    """How far the policy's predicted actions are from the demos' (`masked_loss`)."""
+    return masked_loss(config, model(batch.x, *batch.images), batch.y, batch.m)
+
+
 def member_mean(config: PolicyConfig, prediction: torch.Tensor) -> torch.Tensor:
     """An ensemble's stacked (K, ...) predictions as their mean; a single network's as they are."""
     return prediction.mean(dim=0) if config.members > 1 else prediction
 
 
 class Actor(Protocol):
-    """How a policy of one kind acts on a batch of normalised inputs (B, D), step after step."""
+    """How a policy of one kind acts on a batch of normalised inputs (B, D), and for a pixel policy its
+    cameras' (B, H, W, 3) uint8 images, step after step."""
 
     def reset(self) -> None:
         """New episodes start."""
 
-    def __call__(self, x: torch.Tensor) -> np.ndarray:
-        """(B, D) inputs of this step -> (B, 4) actions."""
+    def __call__(self, x: torch.Tensor, *images: torch.Tensor) -> np.ndarray:
+        """(B, D) inputs of this step (and its images) -> (B, 4) actions."""
 
 
 class ChunkActor:
@@ -148,8 +189,9 @@ class ChunkActor:
     def reset(self) -> None:
         self._chunks: list[np.ndarray] = []  # newest last, each (B, chunk, 4)
 
-    def __call__(self, x: torch.Tensor) -> np.ndarray:
-        self._chunks = (self._chunks + [member_mean(self.config, self.model(x)).numpy()])[-self.config.chunk:]
+    def __call__(self, x: torch.Tensor, *images: torch.Tensor) -> np.ndarray:
+        prediction = member_mean(self.config, self.model(x, *images)).numpy()
+        self._chunks = (self._chunks + [prediction])[-self.config.chunk:]
         # The chunk made j steps ago predicted this step as its element j; the oldest weighs most.
         ages = range(len(self._chunks) - 1, -1, -1)
         weights = np.exp(-self.config.ensemble_decay * np.arange(len(self._chunks)))
@@ -168,7 +210,7 @@ class RecurrentActor:
         self._t = 0
         self._hidden: Any = None  # an ensemble's: one per member
 
-    def __call__(self, x: torch.Tensor) -> np.ndarray:
+    def __call__(self, x: torch.Tensor, *images: torch.Tensor) -> np.ndarray:
         if self._t % self.config.seq_len == 0:
             self._hidden = None
         self._t += 1
@@ -176,7 +218,7 @@ class RecurrentActor:
         return member_mean(self.config, out)[:, 0].numpy()
 
 
-def _chunk_examples(config: PolicyConfig, obs: np.ndarray, actions: np.ndarray) -> Examples:
+def chunk_examples(config: PolicyConfig, obs: np.ndarray, actions: np.ndarray) -> Examples:
     """One example per step: its observation, and the next `chunk` actions (masked past the demo's end)."""
     y, m = chunk_targets(actions, config.chunk)
     return obs, y, m
@@ -199,9 +241,13 @@ class Kind:
     examples: Callable[[PolicyConfig, np.ndarray, np.ndarray], Examples]
     """a demo's (T, D) normalised inputs and (T, 4) actions -> its training examples X, Y, M."""
     actor: Callable[[PolicyConfig, nn.Module], Actor]
+    loss: Callable[[PolicyConfig, nn.Module, Batch], torch.Tensor] = behaviour_loss
+    """what training minimises on a batch."""
+    learns_unseen: bool = False
+    """its examples carry what it does not see of the state (`Samples.unseen`), for its loss."""
 
 
-CHUNKED = Kind(ChunkMLP, _chunk_examples, ChunkActor)
+CHUNKED = Kind(ChunkMLP, chunk_examples, ChunkActor)
 RECURRENT = Kind(RecurrentPolicy, _window_examples, RecurrentActor)
 
 

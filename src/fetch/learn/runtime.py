@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from fetch.camera_obs import image_key
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
 from fetch.learn.data import Normalizer, flat_obs
@@ -39,7 +40,18 @@ class Policy:
         """[steps] the episode length this policy is given: its task's registered horizon, or more where
         the demos it learnt from took longer (`fetch.learn.data.needed_horizon`)."""
         self._actor = implementation(config.kind).actor(config, self.model)
+        self.image_keys = tuple(image_key(c) for c in config.cameras)
+        """The observation keys of the camera images it sees (none: a state policy)."""
         self.reset()
+
+    @property
+    def observation_kwargs(self) -> dict[str, Any]:
+        """What `gym.make` needs, beyond `env_kwargs`, for the observations this policy acts on: its cameras'
+        images at its size (`gym.make(policy.env_id, **policy.env_kwargs, **policy.observation_kwargs)`);
+        nothing for a state policy."""
+        if not self.config.cameras:
+            return {}
+        return {"cameras": self.config.cameras, "image_size": self.config.image_size}
 
     def reset(self) -> None:
         self._batch: int | None = None
@@ -54,10 +66,24 @@ class Policy:
         elif len(x) != self._batch:
             raise FetchError(f"the policy acted on batches of {self._batch} observations since reset(), now "
                              f"{len(x)}; call reset() when the batch changes")
+        images = [torch.from_numpy(self._image(obs, key, single)) for key in self.image_keys]
         with torch.no_grad():
-            action = self._actor(torch.from_numpy(x))
+            action = self._actor(torch.from_numpy(x), *images)
         action = np.clip(action, -1.0, 1.0).astype(np.float32)
         return action[0] if single else action
+
+    def _image(self, obs: Mapping[str, np.ndarray], key: str, single: bool) -> np.ndarray:
+        """The (B, H, W, 3) uint8 images under `key`, checked to be what the policy learnt from."""
+        if key not in obs:
+            raise FetchError(f"the policy sees {', '.join(self.image_keys)}, which the observation lacks; make its env "
+                             f"with gym.make({self.env_id!r}, **policy.env_kwargs, **policy.observation_kwargs)")
+        image = np.asarray(obs[key])
+        image = image[None] if single else image
+        size = self.config.image_size
+        if image.dtype != np.uint8 or image.shape[1:] != (size, size, 3):
+            raise FetchError(f"{key}: the policy learnt from uint8 ({size}, {size}, 3) images, given {image.dtype} "
+                             f"{image.shape[1:]}")
+        return image
 
 
 def load(run: str | os.PathLike[str]) -> Policy:

@@ -15,11 +15,12 @@ from typing import Any
 
 from fetch.dataset.habits import layout_of
 from fetch.errors import FetchError
-from fetch.learn.data import Demos, velocity_columns
-from fetch.learn.kinds import PolicySettings, kind
+from fetch.learn.data import Demos, unseen_by_pixels, velocity_columns
+from fetch.learn.kinds import INPUTS, KINDS, PolicySettings, kind
 from fetch.tasks import Training, registration
 
 AUTO = "auto"
+ACCELERATORS = ("auto", "cpu", "cuda")
 FROM_STEPS_DIVISOR = 4
 """`train --from RUN` goes on for a quarter of RUN's steps unless told otherwise."""
 CORRECTION_WEIGHT = 4
@@ -64,7 +65,7 @@ class TrainConfig:
                                  f"{'> 0' if name == 'lr' else '>= 0'}, got {value!r}")
 
 
-POLICY_FLAGS = ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets", "velocities")
+POLICY_FLAGS = ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets", "velocities", "cameras")
 """The `TrainRequest` fields that shape the policy (a run gone on from keeps its own)."""
 
 
@@ -74,7 +75,13 @@ class TrainRequest:
     leaves the choice to `plan`."""
 
     policy: str = AUTO
-    """a policy kind (`fetch.learn.kinds.POLICY_KINDS`), or "auto": the task's (`fetch.tasks.Training`)."""
+    """a policy kind (`fetch.learn.kinds.POLICY_KINDS`), or "auto": the task's (`fetch.tasks.Training`), or
+    with `inputs="pixels"` the pixel kind."""
+    inputs: str = "state"
+    """what the policy sees (`fetch.learn.kinds.INPUTS`): the state, or the cameras' images with the robot's
+    own readings and the goal."""
+    cameras: tuple[str, ...] | None = None
+    """a pixel policy's cameras (None: every camera the demos have images of)."""
     steps: int | None = None
     epochs: int | None = None
     """passes over the training examples, instead of `steps`."""
@@ -87,14 +94,20 @@ class TrainRequest:
     velocities: bool | None = None
     mirror: bool | None = None
     demos: int = TrainConfig.demos
-    batch_size: int = TrainConfig.batch_size
+    batch_size: int | None = None
+    """None: the kind's (`PolicyKind.training`), else `TrainConfig`'s."""
     lr: float = TrainConfig.lr
     obs_noise: float = TrainConfig.obs_noise
     seed: int = TrainConfig.seed
     checkpoint_every: int = TrainConfig.checkpoint_every
-    threads: int = TrainConfig.threads
+    threads: int | None = None
+    """None: the kind's (`PolicyKind.training`; 0 there is one per core), else `TrainConfig`'s."""
     start_from: str | os.PathLike[str] | None = None
     """a run whose policy this one goes on training (`--from`): its settings, weights and normalisation."""
+    accelerator: str = "auto"
+    """where to train (`ACCELERATORS`): "auto" is CUDA where torch sees a device, else the CPU. Not part of
+    the run's settings: a run stopped on one may resume on the other (results are reproducible for one
+    device and thread count)."""
 
     def given(self) -> list[str]:
         """The policy-shaping fields this request sets, as flags."""
@@ -108,6 +121,21 @@ class TrainPlan:
     policy: PolicySettings
     config: TrainConfig
     start_from: str | os.PathLike[str] | None = None
+
+
+def cores() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def sees_pixels(request: TrainRequest | TrainPlan, base: dict[str, Any] | None = None) -> bool:
+    """Whether the run `request` asks for learns from camera images (so its demos are loaded with them).
+    `base`: the checkpoint of `request.start_from`, whose policy a run going on from it keeps."""
+    if isinstance(request, TrainPlan):
+        return bool(request.policy.cameras)
+    if base is not None:
+        return bool(base["policy"].get("cameras"))
+    return request.inputs == "pixels" or (request.policy != AUTO and kind(request.policy).inputs == "pixels")
 
 
 def task_training(env_id: str) -> Training:
@@ -124,27 +152,35 @@ def plan(request: TrainRequest, demos: Demos, base: dict[str, Any] | None = None
         if request.given() or request.policy != AUTO:
             raise FetchError(f"--from {request.start_from} goes on with that run's policy; leave out "
                              f"{', '.join(request.given()) or '--policy'}")
-        policy = PolicySettings(**{k: v for k, v in base["policy"].items() if k != "obs_size"})
+        policy = PolicySettings(**{k: v for k, v in base["policy"].items() if k not in ("obs_size", "image_size")})
         mirror = bool(base["train"].get("mirror", False)) if request.mirror is None else request.mirror
         steps = request.steps if request.steps is not None else _quarter(base)
     else:
-        policy = _policy(request, demos.env_id)
+        policy = _policy(request, demos)
         auto = task_training(demos.env_id) if request.policy == AUTO else None
-        mirror = request.mirror if request.mirror is not None else bool(auto and auto.mirror)
-        steps = request.steps if request.steps is not None else task_training(demos.env_id).steps
+        mirror = request.mirror if request.mirror is not None else bool(auto and auto.mirror and not policy.cameras)
+        steps = request.steps if request.steps is not None else kind(policy.kind).training.get(
+            "steps", task_training(demos.env_id).steps)
+    if mirror and policy.cameras:
+        raise FetchError("--mirror does not apply to a pixel policy: a camera's image of a demo is not the image "
+                         "of its mirror image")
     for flag, owner in (("chunk", "mlp-chunk"), ("seq_len", "gru")):
         if getattr(request, flag) is not None and flag not in kind(policy.kind).own:
             raise FetchError(f"--{flag.replace('_', '-')} is for --policy {owner}; {request.policy} trains "
                              f"{policy.kind} here, which does not read it")
+    own = kind(policy.kind).training
+    batch_size = request.batch_size if request.batch_size is not None else own.get("batch_size",
+                                                                                   TrainConfig.batch_size)
+    threads = request.threads if request.threads is not None else own.get("threads", TrainConfig.threads)
     if request.epochs is not None:
         if request.epochs < 1:
             raise FetchError(f"--epochs must be a whole number >= 1, got {request.epochs}")
         used = demos.train[:request.demos] if request.demos else demos.train
         count = sum(len(e.actions) for e in used)
-        steps = request.epochs * max(1, count // max(1, min(request.batch_size, count)))
-    config = TrainConfig(steps=steps, batch_size=request.batch_size, lr=request.lr, obs_noise=request.obs_noise,
+        steps = request.epochs * max(1, count // max(1, min(batch_size, count)))
+    config = TrainConfig(steps=steps, batch_size=batch_size, lr=request.lr, obs_noise=request.obs_noise,
                          seed=request.seed, demos=request.demos, mirror=mirror,
-                         checkpoint_every=request.checkpoint_every, threads=request.threads)
+                         checkpoint_every=request.checkpoint_every, threads=threads or cores())
     return TrainPlan(policy, config, request.start_from)
 
 
@@ -152,22 +188,49 @@ def _quarter(base: dict[str, Any]) -> int:
     return max(1, int(base["train"]["steps"]) // FROM_STEPS_DIVISOR)
 
 
-def _policy(request: TrainRequest, env_id: str) -> PolicySettings:
+def _policy(request: TrainRequest, demos: Demos) -> PolicySettings:
     """The policy a new run trains: the kind's defaults, then the task's measured choices (auto), then
-    what the request sets."""
+    what the request sets. A pixel policy sees, of the state, only what `data.unseen_by_pixels` leaves."""
+    if request.inputs not in INPUTS:
+        raise FetchError(f"--inputs {request.inputs!r}: choose one of {', '.join(INPUTS)}")
     chosen: dict[str, Any] = {}
     if request.policy == AUTO:
-        auto = task_training(env_id)
-        name = auto.policy
-        chosen = {"members": auto.members, "goal_offsets": auto.goal_offsets, "velocities": auto.velocities}
-        if auto.chunk is not None:
+        auto = task_training(demos.env_id)
+        name = auto.policy if request.inputs == "state" else next(k.name for k in KINDS if k.inputs == "pixels")
+        chosen = {"goal_offsets": auto.goal_offsets, "velocities": auto.velocities}
+        if request.inputs == "state":
+            chosen["members"] = auto.members  # an ensemble of CNNs would take that many times as long
+        if auto.chunk is not None and "chunk" in kind(name).own:
             chosen["chunk"] = auto.chunk
     else:
         name = kind(request.policy).name
+        if request.inputs != "state" and kind(name).inputs != request.inputs:
+            raise FetchError(f"--policy {name} sees the {kind(name).inputs}, not {request.inputs}; choose one of "
+                             f"{', '.join(k.name for k in KINDS if k.inputs == request.inputs)} or --policy auto")
     for flag in POLICY_FLAGS:
         if getattr(request, flag) is not None:
             chosen[flag] = getattr(request, flag)
+    layout = layout_of(demos.env_id) or {}
     velocities = chosen.pop("velocities", True)
-    if not velocities:
-        chosen["blind"] = velocity_columns(layout_of(env_id) or {})
+    blind = set() if velocities else set(velocity_columns(layout))
+    if kind(name).inputs == "pixels":
+        chosen["cameras"] = _cameras(chosen.get("cameras"), demos)
+        blind |= set(unseen_by_pixels(layout, bool(chosen.get("goal_offsets", False))))
+    elif chosen.get("cameras"):
+        raise FetchError(f"--cameras is for a pixel policy (--inputs pixels); {name} sees the state")
+    if blind:
+        chosen["blind"] = tuple(sorted(blind))
     return PolicySettings.of(name, **chosen)
+
+
+def _cameras(asked: tuple[str, ...] | None, demos: Demos) -> tuple[str, ...]:
+    """The cameras a pixel policy sees: those asked for, each one the demos have images of (None: all)."""
+    if not demos.cameras:
+        raise FetchError(f"{demos.origin} holds no camera images for a pixel policy to learn from; record them with "
+                         "`collect --cameras front,wrist` or `generate --cameras front,wrist`, or add them with "
+                         "`gym-fetch render-obs DATASET --camera front`")
+    cameras = tuple(asked) if asked else demos.cameras
+    for camera in cameras:
+        if camera not in demos.cameras:
+            raise FetchError(f"--cameras {camera}: {demos.origin} has images of {', '.join(demos.cameras)} only")
+    return cameras

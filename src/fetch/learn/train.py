@@ -19,8 +19,8 @@ from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
 from fetch.learn.data import Demos, Normalizer, load_demos, policy_inputs, with_reflections
 from fetch.learn.kinds import PolicyConfig
-from fetch.learn.policies import Samples, build, masked_loss, samples
-from fetch.learn.settings import TrainConfig, TrainPlan, TrainRequest, plan
+from fetch.learn.policies import Samples, behaviour_loss, build, implementation, samples
+from fetch.learn.settings import ACCELERATORS, TrainConfig, TrainPlan, TrainRequest, plan, sees_pixels
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,20 +50,35 @@ def batch_indices(config: TrainConfig, count: int, step: int) -> np.ndarray:
     return order[index * size:(index + 1) * size]
 
 
-def _tensors(s: Samples) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    return torch.from_numpy(s.x), torch.from_numpy(s.y), torch.from_numpy(s.m)
+CPU = torch.device("cpu")
 
 
-def validation_loss(policy: PolicyConfig, model: torch.nn.Module, valid: Samples | None) -> float | None:
+def accelerator(asked: str = "auto") -> torch.device:
+    """Where training runs: CUDA when asked for, or when present and `asked` is "auto"; else the CPU."""
+    if asked not in ACCELERATORS:
+        raise FetchError(f"--accelerator {asked!r}: choose one of {', '.join(ACCELERATORS)}")
+    if asked == "cuda" and not torch.cuda.is_available():
+        raise FetchError("--accelerator cuda: torch sees no CUDA device here (torch.cuda.is_available() is False)")
+    if asked == "cpu" or not torch.cuda.is_available():
+        return CPU
+    # cuBLAS is deterministic only with this workspace setting (PyTorch's reproducibility notes).
+    os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+    return torch.device("cuda")
+
+
+def validation_loss(policy: PolicyConfig, model: torch.nn.Module, valid: Samples | None,
+                    device: torch.device = CPU) -> float | None:
+    """The behaviour-cloning loss on the validation demos (whatever else the kind's loss adds)."""
     if valid is None or len(valid) == 0:
         return None
-    x, y, m = _tensors(valid)
+    batch = valid.tensors()
+    size = 512 if batch.images else 4096  # a pixel policy's activations are large
     model.eval()
     with torch.no_grad():
-        total = sum(float(masked_loss(policy, model(x[i:i + 4096]), y[i:i + 4096], m[i:i + 4096]))
-                    * float(m[i:i + 4096].sum()) for i in range(0, len(x), 4096))
+        total = sum(float(behaviour_loss(policy, model, part.to(device))) * float(part.m.sum())
+                    for part in (batch.take(slice(i, i + size)) for i in range(0, len(valid), size)))
     model.train()
-    return total / float(m.sum())
+    return total / float(batch.m.sum())
 
 
 def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
@@ -81,13 +96,18 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
 
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
     run = pathlib.Path(out)
-    demos = dataset if isinstance(dataset, Demos) else load_demos(dataset)
-    for origin in demos.origins or (demos.origin,):
-        ckpt.require_outside(run, pathlib.Path(origin))
     request = TrainRequest() if request is None else request
     start_from = request.start_from
-    base = _base(start_from, demos.env_id) if start_from is not None else None
+    base = ckpt.read(start_from) if start_from is not None else None
+    demos = dataset if isinstance(dataset, Demos) else load_demos(dataset, images=sees_pixels(request, base))
+    for origin in demos.origins or (demos.origin,):
+        ckpt.require_outside(run, pathlib.Path(origin))
+    if base is not None and base["source"]["env_id"] != demos.env_id:
+        raise FetchError(f"--from {start_from} is a {base['source']['env_id']} policy; these demos are {demos.env_id}")
     chosen = plan(request, demos, base) if isinstance(request, TrainRequest) else request
+    if chosen.policy.cameras and any(c not in e.images for e in demos.train[:1] for c in chosen.policy.cameras):
+        raise FetchError(f"a pixel policy learns from the demos' images: load them with images "
+                         f"(fetch.learn.data.load_demos(path, images=True)); {demos.origin} was loaded without")
     config = chosen.config
     if config.demos:
         if len(demos.train) < config.demos:
@@ -102,7 +122,9 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     if config.mirror:
         demos = with_reflections(demos)
     policy_config = PolicyConfig(**chosen.policy.as_dict(),
-                                 obs_size=policy_inputs(demos.train[0], chosen.policy.goal_offsets).shape[1])
+                                 obs_size=policy_inputs(demos.train[0], chosen.policy.goal_offsets).shape[1],
+                                 image_size=demos.image_size if chosen.policy.cameras else 0)
+    device = accelerator(request.accelerator if isinstance(request, TrainRequest) else "auto")
     torch.set_num_threads(config.threads)
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(config.seed)
@@ -114,6 +136,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
                              "the policy flags out and the run's are used")
         model.load_state_dict(base["model"])
         norm = Normalizer(base["norm"]["mean"].numpy(), base["norm"]["std"].numpy())
+    model.to(device)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     history: dict[str, list[float]] = {"step": [], "train_loss": [], "valid_loss": []}
     start = 0
@@ -135,13 +158,16 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
 
     train_samples = samples(policy_config, demos.train, norm)
     valid_samples = samples(policy_config, demos.valid, norm) if demos.valid else None
-    x, y, m = _tensors(train_samples)
+    examples = train_samples.tensors()
+    loss_of = implementation(policy_config.kind).loss
     running: list[float] = []
     members = f" x{policy_config.members}" if policy_config.members > 1 else ""
     mirrored = ", mirror images included" if config.mirror else ""
+    mirrored += f", seeing {', '.join(policy_config.cameras)}" if policy_config.cameras else ""
+    where = f" on {device}" if device != CPU else ""
     say(f"training {policy_config.kind}{members} on {len(demos.train)} {demos.env_id} demos{mirrored} "
         f"({len(train_samples)} examples) for steps {start + 1}-{config.steps}, batch {config.batch_size}, "
-        f"{config.threads} thread(s); horizon {horizon} steps; checkpoint every {config.checkpoint_every} steps "
+        f"{config.threads} thread(s){where}; horizon {horizon} steps; checkpoint every {config.checkpoint_every} steps "
         f"in {ckpt.path(run)}")
     clock = time.perf_counter()
     first = min(config.steps, start + max(10, (config.steps - start) // 100))  # when to say how long it takes
@@ -161,11 +187,11 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     for step in progress(steps, len(steps), f"train {policy_config.kind}", "steps") if show_progress else steps:
         for group in optimizer.param_groups:
             group["lr"] = learning_rate(config, step)
-        idx = torch.from_numpy(batch_indices(config, len(train_samples), step))
-        inputs = x[idx]
-        if config.obs_noise:
-            inputs = inputs + config.obs_noise * torch.randn_like(inputs)
-        loss = masked_loss(policy_config, model(inputs), y[idx], m[idx])
+        batch = examples.take(torch.from_numpy(batch_indices(config, len(train_samples), step)))
+        if config.obs_noise:  # drawn on the CPU, whose generator the checkpoint keeps, on any device
+            batch = batch._replace(x=batch.x + config.obs_noise * torch.randn_like(batch.x))
+        batch = batch.to(device)
+        loss = loss_of(policy_config, model, batch)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
@@ -176,7 +202,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
             say(f"step {done}/{config.steps}: {rate:.0f} steps/s, about {(config.steps - done) / rate / 60:.1f} "
                 "minutes to go")
         if done % config.checkpoint_every == 0 or done == config.steps:
-            valid = validation_loss(policy_config, model, valid_samples)
+            valid = validation_loss(policy_config, model, valid_samples, device)
             history["step"].append(float(done))
             history["train_loss"].append(float(np.mean(running)))
             history["valid_loss"].append(math.nan if valid is None else valid)
@@ -190,11 +216,3 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     last_valid = history["valid_loss"][-1]
     return TrainResult(run, config.steps, history["train_loss"][-1],
                        None if math.isnan(last_valid) else last_valid, start, chosen)
-
-
-def _base(start_from: str | os.PathLike[str], env_id: str) -> dict[str, Any]:
-    """The checkpoint of the run to go on from, checked to be of this task."""
-    base = ckpt.read(start_from)
-    if base["source"]["env_id"] != env_id:
-        raise FetchError(f"--from {start_from} is a {base['source']['env_id']} policy; these demos are {env_id}")
-    return base
