@@ -2,13 +2,15 @@
 
     .venv-train/bin/python -m benchmarks.mission [--env PickPlace-v2] [--style standin] [--demos 10]
         [--generated 1000] [--generate-noise STD] [--workers 2] [--dir /tmp/mission]
+        [--inputs pixels [--image-size 84] [--train-args "--steps 3000"]]
 
 1. teleop: 10 demos through the real gamepad path (SDL's virtual pad, the real `GamepadDevice` and
    collector), driven by a stand-in for a person of `--style` (`tests/operators.py`: the expert's
    intent, carried out with that style's habits: pace, pauses, a missed grasp, gripper habits,
    approach paths; docs/operators.md);
-2. `gym-fetch generate` multiplies them into `--generated` demos;
-3. `gym-fetch train` with its defaults;
+2. `gym-fetch generate` multiplies them into `--generated` demos (with `--inputs pixels`, rendering the
+   front and wrist cameras' images of each in its workers);
+3. `gym-fetch train` with its defaults (with `--inputs pixels`, the pixel policy: `train --inputs pixels`);
 4. `gym-fetch eval --episodes 100` on seeds disjoint from the data's.
 Each stage is skipped when its output exists (run again after an interruption). Prints the time of
 each stage and the success with its 95 % interval. Bar: >= 90 % within 30 minutes on 2 cores.
@@ -62,6 +64,26 @@ def gym_fetch(*args: str) -> float:
     return time.perf_counter() - start
 
 
+def live_rate(run: pathlib.Path, steps: int = 200) -> float:
+    """[Hz] how fast the policy of `run` acts in one env, rendering its cameras as it goes (a pixel policy's
+    images; nothing for a state policy): what `collect --device policy` needs beside its window."""
+    import gymnasium as gym
+    import torch
+
+    import fetch.learn
+
+    torch.set_num_threads(1)  # as the collector's policy device runs it
+    policy = fetch.learn.load(run)
+    env = gym.make(policy.env_id, **policy.env_kwargs, **policy.observation_kwargs)
+    obs, _ = env.reset(seed=10**7)
+    policy.reset()
+    start = time.perf_counter()
+    for _ in range(steps):
+        obs, *_ = env.step(policy(obs))
+    env.close()
+    return steps / (time.perf_counter() - start)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="PickPlace-v2")
@@ -75,27 +97,41 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--dir", default="/tmp/mission")
+    parser.add_argument("--inputs", default="state", choices=("state", "pixels"),
+                        help="what the policy sees (gym-fetch train --inputs; default state)")
+    parser.add_argument("--image-size", type=int, default=84, help="--inputs pixels: the images' side [px]")
+    parser.add_argument("--train-args", default="", help="more `gym-fetch train` flags, e.g. \"--steps 3000\"")
     args = parser.parse_args()
     root = pathlib.Path(args.dir) / args.env / args.style
+    cameras: list[str] = []
+    if args.inputs == "pixels":  # its own directory; the stand-in's pad demos are the same for the same seed
+        root = root.parent / f"{args.style}-pixels{args.image_size}"
+        cameras = ["--cameras", "front,wrist", "--image-size", str(args.image_size)]
     root.mkdir(parents=True, exist_ok=True)
     timing_file = root / "timing.json"
     timing = json.loads(timing_file.read_text()) if timing_file.exists() else {}
     human, generated, run, result = root / "human", root / "generated", root / "run", root / "eval.json"
     print(machine_line("torch"))
-    print(f"{args.env}, {args.demos} pad demos -> {args.generated} generated -> train -> eval {args.episodes}")
+    print(f"{args.env}, {args.demos} pad demos -> {args.generated} generated -> train ({args.inputs}) -> eval "
+          f"{args.episodes}")
     if "teleop" not in timing:
         timing["teleop"], timing["person"] = teleop(args.env, human, args.demos, args.style, args.seed)
         timing_file.write_text(json.dumps(timing))
     if "generate" not in timing:
         noise = [] if args.generate_noise is None else ["--noise", str(args.generate_noise)]
         timing["generate"] = gym_fetch("generate", "--source", str(human), "--out", str(generated),
-                                       "--demos", str(args.generated), "--workers", str(args.workers), *noise)
+                                       "--demos", str(args.generated), "--workers", str(args.workers), *noise,
+                                       *cameras)
         timing_file.write_text(json.dumps(timing))
     if "train" not in timing:
-        timing["train"] = gym_fetch("train", str(generated), "--out", str(run))
+        inputs = ["--inputs", "pixels"] if args.inputs == "pixels" else []
+        timing["train"] = gym_fetch("train", str(generated), "--out", str(run), *inputs, *args.train_args.split())
         timing_file.write_text(json.dumps(timing))
     if "eval" not in timing:
         timing["eval"] = gym_fetch("eval", str(run), "--episodes", str(args.episodes), "--json", str(result))
+        timing_file.write_text(json.dumps(timing))
+    if "live_hz" not in timing:
+        timing["live_hz"] = live_rate(run)
         timing_file.write_text(json.dumps(timing))
     outcome = json.loads(result.read_text())
     compute = timing["generate"] + timing["train"] + timing["eval"]
@@ -106,12 +142,13 @@ def main() -> None:
     for stage in ("generate", "train", "eval"):
         print(f"| {stage} | {timing[stage]:.0f} s |")
     print(f"| generate + train + eval | {compute / 60:.1f} min |")
+    print(f"\nacting live in one env, cameras rendered: {timing['live_hz']:.0f} Hz")
     lo, hi = outcome["ci95"]
     horizon = outcome.get("horizon", 50)
     registered = outcome.get("registered_horizon", horizon)
     at_registered = (f", at the registered {registered} steps {100 * outcome['registered_success_rate']:.0f} %"
                      if registered != horizon else "")
-    print(f"\n{args.style} on {args.env}: success {100 * outcome['success_rate']:.0f} % (95 % interval "
+    print(f"\n{args.style} on {args.env}, {args.inputs}: success {100 * outcome['success_rate']:.0f} % (95 % interval "
           f"{100 * lo:.0f}-{100 * hi:.0f} %) over {outcome['episodes']} episodes at the policy's horizon of {horizon} "
           f"steps{at_registered}; mean length {outcome['mean_length']:.1f} (the pad demos: "
           f"{demo_length(human):.1f}); "
