@@ -1,7 +1,8 @@
 """The kinds of policy `gym-fetch train` learns: one record each (`KINDS`), and the settings of a policy.
 
-A kind's record says what it is for `--help`, which settings it reads that others do not, its defaults,
-and where its torch side lives (`implementation`, resolved only when a policy is built or run): the
+A kind's record says what it is for `--help`, what it sees (the state, or camera images with the robot's
+own readings: `inputs`), which settings it reads that others do not, its defaults and how it trains unless
+told, and where its torch side lives (`implementation`, resolved only when a policy is built or run): the
 network, how a demo becomes training examples, and how the policy acts step by step
 (`fetch.learn.policies.Kind`). A new kind is one record here and one `Kind` there. Nothing here imports
 torch, so the CLI can list the kinds without it.
