@@ -16,6 +16,7 @@ import multiprocessing
 import os
 import signal
 import sys
+import time
 from collections.abc import Callable, Iterator
 from typing import Any, Protocol
 
@@ -179,6 +180,12 @@ class Pool:
 def _how_ended(processes: list[multiprocessing.process.BaseProcess]) -> str:
     """How a broken pool's workers ended, but for those the pool itself then terminated (SIGTERM):
     "SIGKILL" (`kill -9`, the out-of-memory killer), "SIGSEGV", "exit status 1"."""
+    # The pool's own thread may be reaping a worker at this moment: until it has stored the exit status,
+    # the worker's `exitcode` reads None (its waitpid here finds nothing left to wait for). CI's non-root
+    # run caught that once ("how, unknown" for a SIGKILL).
+    deadline = time.monotonic() + 2.0
+    while any(p.exitcode is None for p in processes) and time.monotonic() < deadline:
+        time.sleep(0.01)
     ends = {p.exitcode for p in processes if p.exitcode is not None} - {-signal.SIGTERM}
     if not ends:
         return "how, unknown"
