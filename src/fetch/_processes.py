@@ -66,3 +66,8 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> No
             # hung once after its last demo). This end closed too, with every worker gone, it reads
             # the end of the pipe instead.
             results._writer.close()
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity where the OS has one)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)

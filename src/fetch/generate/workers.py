@@ -67,7 +67,9 @@ class Backend(Protocol):
 
 
 def default_workers() -> int:
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    from fetch._processes import usable_cores
+
+    return usable_cores()
 
 
 class Serial:

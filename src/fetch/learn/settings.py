@@ -125,7 +125,9 @@ class TrainPlan:
 
 def cores() -> int:
     """The cores this process may run on."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    from fetch._processes import usable_cores
+
+    return usable_cores()
 
 
 def sees_pixels(request: TrainRequest | TrainPlan, base: dict[str, Any] | None = None) -> bool:
