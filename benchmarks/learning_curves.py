@@ -33,6 +33,8 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks import pixel_curves
+
 CURVE_TASKS = ("Push-v2", "PickPlace-v2", "Drawer-open-v2", "Bin-place-v2", "Box-close-v2")
 ALL_TASKS = ("Bin-pick-v2", "Bin-place-v2", "Box-open-v2", "Box-close-v2", "Drawer-open-v2", "Drawer-close-v2",
              "Reach-v2", "Push-v2", "PickPlace-v2", "Slide-v2")
@@ -379,6 +381,12 @@ def _publish(results: pathlib.Path, docs: pathlib.Path, steps: int) -> None:
     choices = choices_table(results)
     if choices:
         text += "\n" + choices
+    # benchmarks.pixel_curves' section: from its results here, else as the page has it.
+    page = docs / "learning_curves.md"
+    pixels = pixel_curves.table(results) or pixel_curves.section(page.read_text() if page.exists() else "",
+                                                                 pixel_curves.HEADING)
+    if pixels:
+        text = pixel_curves.with_section(text, pixel_curves.HEADING, pixels)
     tmp = docs / ".learning_curves.md.tmp"
     tmp.write_text(text)
     os.replace(tmp, docs / "learning_curves.md")

@@ -1,0 +1,194 @@
+"""Learning curves from the cameras against from the state: success after N of the mission's demos.
+
+    .venv-train/bin/python -m benchmarks.pixel_curves --mission /tmp/mission [--tasks PickPlace-v2]
+        [--results /tmp/gym-fetch-learning-curves] [--seeds 0,1,2] [--limit K]
+
+The demos are those `benchmarks.mission --env TASK --inputs pixels --dir /tmp/mission` generated for a task
+(the stand-in's 10 pad demos multiplied to 1000 by `gym-fetch generate --cameras front,wrist --image-size 84`,
+drawn "fast"; 900 of them in mask/train): run that first. Each run trains, with `gym-fetch train`'s defaults,
+on the first N demos of mask/train (`DEMOS`: 10, 100 and all 900) either the pixel policy (`--inputs pixels`)
+or the state policy (`--policy auto`), with training seed 0, 1 or 2, and evaluates it on 100 episodes of seeds
+disjoint from the data's. Every run's result is one JSON file under `--results`/pixels, so a killed benchmark
+goes on where it stopped (a run done is skipped, a half-trained one resumes from its checkpoint). After each
+run it rewrites its section of docs/learning_curves.md (`HEADING`; the rest of the page is
+`benchmarks.learning_curves`', which keeps this section when it rewrites the page).
+
+A run is one `gym-fetch train` with that many demos: the pixel policy takes its 6000 steps whatever the
+number of demos (about 13 minutes on 2 cores), the state policy the task's steps (2-4 minutes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import pathlib
+import time
+from typing import Any
+
+import numpy as np
+
+from benchmarks._machine import machine_line
+from fetch.rendering import DEFAULT_IMAGE_QUALITY
+
+DEMOS = (10, 100, 0)
+"""Demos trained on (the first of mask/train); 0: all of them (900 of the 1000 generated)."""
+INPUTS = ("pixels", "state")
+SEEDS = (0, 1, 2)
+EPISODES = 100
+HEADING = "## From the cameras against from the state (the mission's generated demos)"
+"""The section of docs/learning_curves.md this benchmark writes."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Job:
+    task: str
+    inputs: str
+    demos: int
+    seed: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.task}__{self.inputs}__n{self.demos or 'all'}__s{self.seed}"
+
+
+def jobs(tasks: list[str], seeds: tuple[int, ...]) -> list[Job]:
+    """Every run, one training seed of everything first (the cheap state runs before the pixel runs)."""
+    return [Job(task, inputs, demos, seed) for seed in seeds for task in tasks for inputs in reversed(INPUTS)
+            for demos in DEMOS]
+
+
+def generated(mission: pathlib.Path, task: str) -> pathlib.Path:
+    """The mission's generated demos (with images) of `task`; a one-line error where the mission has not run."""
+    path = mission / task / f"standin-pixels84-{DEFAULT_IMAGE_QUALITY}" / "generated"
+    if not path.exists():
+        raise SystemExit(f"{path}: no generated demos with images; run `python -m benchmarks.mission --env {task} "
+                         f"--inputs pixels --dir {mission}` first")
+    return path
+
+
+def run(job: Job, dataset: pathlib.Path, results: pathlib.Path) -> dict[str, Any]:
+    """Train as `gym-fetch train DATASET [--inputs pixels] --demos N --seed S` does and evaluate."""
+    from fetch.learn import load
+    from fetch.learn.evaluate import evaluate
+    from fetch.learn.settings import TrainRequest
+    from fetch.learn.train import train
+
+    start = time.perf_counter()
+    trained = train(dataset, results / "runs" / job.name,
+                    TrainRequest(inputs=job.inputs, demos=job.demos, seed=job.seed), log=lambda _: None,
+                    show_progress=False)
+    train_s = time.perf_counter() - start
+    start = time.perf_counter()
+    outcome = evaluate(load(trained.run), EPISODES)
+    return {**dataclasses.asdict(job), "policy": trained.plan.policy.kind, "steps": trained.plan.config.steps,
+            "train_demos": _train_demos(trained.run), "train_seconds": train_s,
+            "eval_seconds": time.perf_counter() - start, **outcome.as_dict()}
+
+
+def _train_demos(run_dir: pathlib.Path) -> int:
+    from fetch.learn import checkpoint
+
+    return len(checkpoint.read(run_dir)["source"]["train_demos"])
+
+
+def table(results: pathlib.Path) -> str:
+    """This benchmark's section of docs/learning_curves.md from the results so far ("" without any)."""
+    found = [json.loads(p.read_text()) for p in sorted((results / "pixels").glob("*.json"))]
+    if not found:
+        return ""
+    counts = {r["demos"]: r["train_demos"] for r in found}
+    lines = [HEADING, "",
+             "Written by `benchmarks/pixel_curves.py` (see its docstring). The demos: `benchmarks.mission --inputs "
+             "pixels`' stand-in, 10 pad demos, `gym-fetch generate` to 1000 with front and wrist images at 84 x 84 "
+             "(900 in mask/train); each run is `gym-fetch train` with its defaults on the first N of them (pixels: "
+             "`--inputs pixels`, the `cnn-chunk` policy; state: the task's `auto` policy), then "
+             f"{EPISODES} evaluation episodes on unseen seeds. Success %, mean ± std over the training seeds done "
+             "(their count in brackets); the last column is the mean training wall time of a run on 2 cores.", "",
+             "| task | sees | " + " | ".join(f"{counts.get(n, n or 'all')} demos" for n in DEMOS)
+             + " | train [s] per run |", "|---|---|" + "---|" * (len(DEMOS) + 1)]
+    for task in sorted({r["task"] for r in found}):
+        for inputs in INPUTS:
+            rows = [r for r in found if r["task"] == task and r["inputs"] == inputs]
+            if not rows:
+                continue
+            cells = []
+            for n in DEMOS:
+                rates = [100 * r["success_rate"] for r in rows if r["demos"] == n]
+                spread = f" ± {np.std(rates):.0f}" if len(rates) > 1 else ""
+                cells.append(f"{np.mean(rates):.0f}{spread} ({len(rates)})" if rates else "")
+            seconds = np.mean([r["train_seconds"] for r in rows])
+            lines.append(f"| `{task}` | {inputs} ({rows[0]['policy']}) | " + " | ".join(cells) + f" | {seconds:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
+def section(text: str, heading: str) -> str:
+    """The part of a markdown page from the line `heading` to the next "## " heading ("" without it)."""
+    lines = text.splitlines(keepends=True)
+    if heading + "\n" not in lines:
+        return ""
+    start = lines.index(heading + "\n")
+    end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
+    return "".join(lines[start:end])
+
+
+def with_section(text: str, heading: str, new: str) -> str:
+    """`text` with its section under `heading` replaced by `new` (added at the end where it has none)."""
+    old = section(text, heading)
+    if not old:
+        return text.rstrip("\n") + "\n\n" + new
+    before, after = text.split(old, 1)
+    return before + new + ("\n" + after if after else "")
+
+
+def publish(results: pathlib.Path, docs: pathlib.Path) -> None:
+    page = docs / "learning_curves.md"
+    text = table(results)
+    if not text:
+        return
+    tmp = page.with_name(f".{page.name}.tmp")
+    tmp.write_text(with_section(page.read_text() if page.exists() else "# Learning curves\n", HEADING, text))
+    tmp.replace(page)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--mission", default="/tmp/mission", help="benchmarks.mission's --dir (default %(default)s)")
+    p.add_argument("--tasks", default="PickPlace-v2", help="comma-separated (default %(default)s)")
+    p.add_argument("--results", default="/tmp/gym-fetch-learning-curves",
+                   help="where runs and results go: <results>/pixels (default %(default)s)")
+    p.add_argument("--docs", default=str(pathlib.Path(__file__).resolve().parents[1] / "docs"),
+                   help="where learning_curves.md is (default: the repo's docs/)")
+    p.add_argument("--seeds", default=",".join(map(str, SEEDS)), help="training seeds (default %(default)s)")
+    p.add_argument("--limit", type=int, default=0, help="stop after this many new runs (default 0: all)")
+    args = p.parse_args(argv)
+    import fetch  # noqa: F401  (registers the ids)
+    from fetch.tasks import REGISTRATIONS
+
+    known = [r.env_id for r in REGISTRATIONS]
+    tasks = args.tasks.split(",")
+    if unknown := [t for t in tasks if t not in known]:
+        p.error(f"--tasks: unknown {', '.join(unknown)}; choose from {', '.join(known)}")
+    results, docs = pathlib.Path(args.results), pathlib.Path(args.docs)
+    (results / "pixels").mkdir(parents=True, exist_ok=True)
+    print(machine_line("torch"))
+    new = 0
+    for job in jobs(tasks, tuple(int(s) for s in args.seeds.split(","))):
+        target = results / "pixels" / f"{job.name}.json"
+        if target.exists():
+            continue
+        if args.limit and new >= args.limit:
+            break
+        outcome = run(job, generated(pathlib.Path(args.mission), job.task), results)
+        tmp = target.with_name(f".{target.name}.tmp")
+        tmp.write_text(json.dumps(outcome, indent=1))
+        tmp.replace(target)
+        new += 1
+        print(f"{job.name}: {100 * outcome['success_rate']:.0f} % (train {outcome['train_seconds']:.0f} s, "
+              f"eval {outcome['eval_seconds']:.0f} s)", flush=True)
+        publish(results, docs)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
