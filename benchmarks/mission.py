@@ -2,14 +2,14 @@
 
     .venv-train/bin/python -m benchmarks.mission [--env PickPlace-v2] [--style standin] [--demos 10]
         [--generated 1000] [--generate-noise STD] [--workers 2] [--dir /tmp/mission]
-        [--inputs pixels [--image-size 84] [--train-args "--steps 3000"]]
+        [--inputs pixels [--image-size 84] [--image-quality fast] [--train-args "--steps 3000"]]
 
 1. teleop: 10 demos through the real gamepad path (SDL's virtual pad, the real `GamepadDevice` and
    collector), driven by a stand-in for a person of `--style` (`tests/operators.py`: the expert's
    intent, carried out with that style's habits: pace, pauses, a missed grasp, gripper habits,
    approach paths; docs/operators.md);
 2. `gym-fetch generate` multiplies them into `--generated` demos (with `--inputs pixels`, rendering the
-   front and wrist cameras' images of each in its workers);
+   front and wrist cameras' images of each in its workers, at `--image-quality`);
 3. `gym-fetch train` with its defaults (with `--inputs pixels`, the pixel policy: `train --inputs pixels`);
 4. `gym-fetch eval --episodes 100` on seeds disjoint from the data's.
 Each stage is skipped when its output exists (run again after an interruption). Prints the time of
@@ -27,6 +27,7 @@ import sys
 import time
 
 from benchmarks._machine import machine_line
+from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES
 
 
 def teleop(env_id: str, out: pathlib.Path, demos: int, style: str, seed: int = 0) -> tuple[float, float]:
@@ -100,19 +101,23 @@ def main() -> None:
     parser.add_argument("--inputs", default="state", choices=("state", "pixels"),
                         help="what the policy sees (gym-fetch train --inputs; default state)")
     parser.add_argument("--image-size", type=int, default=84, help="--inputs pixels: the images' side [px]")
+    parser.add_argument("--image-quality", default=DEFAULT_IMAGE_QUALITY, choices=IMAGE_QUALITIES,
+                        help="--inputs pixels: how the images are drawn (default %(default)s, generate's)")
     parser.add_argument("--train-args", default="", help="more `gym-fetch train` flags, e.g. \"--steps 3000\"")
     args = parser.parse_args()
     root = pathlib.Path(args.dir) / args.env / args.style
     cameras: list[str] = []
     if args.inputs == "pixels":  # its own directory; the stand-in's pad demos are the same for the same seed
-        root = root.parent / f"{args.style}-pixels{args.image_size}"
-        cameras = ["--cameras", "front,wrist", "--image-size", str(args.image_size)]
+        root = root.parent / f"{args.style}-pixels{args.image_size}-{args.image_quality}"
+        cameras = ["--cameras", "front,wrist", "--image-size", str(args.image_size), "--image-quality",
+                   args.image_quality]
     root.mkdir(parents=True, exist_ok=True)
     timing_file = root / "timing.json"
     timing = json.loads(timing_file.read_text()) if timing_file.exists() else {}
     human, generated, run, result = root / "human", root / "generated", root / "run", root / "eval.json"
     print(machine_line("torch"))
-    print(f"{args.env}, {args.demos} pad demos -> {args.generated} generated -> train ({args.inputs}) -> eval "
+    seeing = f"pixels, {args.image_size} px {args.image_quality}" if args.inputs == "pixels" else "state"
+    print(f"{args.env}, {args.demos} pad demos -> {args.generated} generated -> train ({seeing}) -> eval "
           f"{args.episodes}")
     if "teleop" not in timing:
         timing["teleop"], timing["person"] = teleop(args.env, human, args.demos, args.style, args.seed)

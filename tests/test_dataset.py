@@ -300,9 +300,9 @@ def test_cameras_are_recorded_as_rendered_from_the_saved_states(tmp_path: pathli
 
     assert collect(tmp_path, "--cameras", "front,wrist", "--image-size", "32", env="Reach-v2", episodes=1) == 0
     env = gym.make("Reach-v2").unwrapped
-    renderer = OffscreenRenderer(env.model, 32, 32)  # type: ignore[attr-defined]
+    renderer = OffscreenRenderer(env.model, 32, 32, "fast")  # type: ignore[attr-defined]
     with open_dataset(tmp_path) as ds:
-        assert validate(ds) == [] and ds.layout.cameras == ("front", "wrist")
+        assert validate(ds) == [] and ds.layout.cameras == ("front", "wrist") and ds.layout.image_quality == "fast"
         g = ds.demo("demo_0")
         states = g["states"][()]
         for camera in ("front", "wrist"):
@@ -313,6 +313,16 @@ def test_cameras_are_recorded_as_rendered_from_the_saved_states(tmp_path: pathli
                 env.set_state(states[t])  # type: ignore[attr-defined]
                 recorded = frames[t] if t < len(frames) else after[-1]
                 np.testing.assert_array_equal(renderer.render(env.data, camera), recorded)  # type: ignore[attr-defined]
+    renderer.close()
+    # --image-quality full records the scene as the viewer draws it, and says so in the layout
+    assert collect(tmp_path / "full", "--cameras", "front", "--image-size", "32", "--image-quality", "full",
+                   env="Reach-v2", episodes=1) == 0
+    renderer = OffscreenRenderer(env.model, 32, 32, "full")  # type: ignore[attr-defined]
+    with open_dataset(tmp_path / "full") as ds:
+        assert ds.layout.image_quality == "full"
+        g = ds.demo("demo_0")
+        env.set_state(g["states"][0])  # type: ignore[attr-defined]
+        np.testing.assert_array_equal(renderer.render(env.data, "front"), g["obs/front_image"][0])  # type: ignore[attr-defined]
     renderer.close()
     assert collect(tmp_path / "other", "--cameras", "fron", env="Reach-v2", episodes=1) == 2
     assert "unknown camera 'fron'" in capsys.readouterr().err

@@ -57,8 +57,9 @@ def test_every_demo_holds_the_images_render_obs_makes_of_its_states(pooled: path
     with open_dataset(pooled) as ds:
         require_valid(ds)
         assert ds.layout.cameras == CAMERAS and ds.layout.image_size == SIZE
+        assert ds.layout.image_quality == "fast"  # the default
         assert len(ds.demo_names) == 4
-        with StateRenderer(ds.env_id, ds.env_kwargs, SIZE, SIZE) as renderer:
+        with StateRenderer(ds.env_id, ds.env_kwargs, SIZE, SIZE, "fast") as renderer:
             for name in ds.demo_names:
                 arrays = ds.arrays(name)
                 steps = len(arrays["actions"])
@@ -159,7 +160,7 @@ def test_a_source_whose_env_hides_the_goal_is_rendered_as_render_obs_renders_it(
         f["data"].attrs["env_args"] = json.dumps(env_args)
     out = tmp_path / "out"
     assert main(gen_argv(hidden, out, 1, "--workers", "1", SHORT, "--cameras", "front", "--image-size", str(SIZE))) == 0
-    with open_dataset(out) as ds, StateRenderer(ds.env_id, env_args["env_kwargs"], SIZE, SIZE) as renderer:
+    with open_dataset(out) as ds, StateRenderer(ds.env_id, env_args["env_kwargs"], SIZE, SIZE, "fast") as renderer:
         arrays = ds.arrays(ds.demo_names[0])
         frames = renderer.frames(arrays["states"], "front")
         assert np.array_equal(arrays["obs/front_image"], frames[:-1])

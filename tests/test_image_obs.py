@@ -42,16 +42,18 @@ class Spy:
         monkeypatch.setattr(rendering, "OffscreenRenderer", Counted)
 
 
-@pytest.mark.parametrize("env_id", ["PickPlace-v2", "Reach-v2"])
-def test_images_are_the_ones_the_dataset_records_for_the_state(env_id: str) -> None:
-    """Reset, steps and set_state + observe: each image equals render-obs' (`StateRenderer`) of that state."""
-    env = gym.make(env_id, cameras=TWO, image_size=84)
+@pytest.mark.parametrize("env_id, quality", [("PickPlace-v2", "full"), ("Reach-v2", "fast"), ("Bin-pick-v2", "fast")])
+def test_images_are_the_ones_the_dataset_records_for_the_state(env_id: str, quality: str) -> None:
+    """Reset, steps and set_state + observe: each image equals render-obs' (`StateRenderer`) of that state, at
+    the same image quality."""
+    kwargs = {} if quality == rendering.DEFAULT_IMAGE_QUALITY else {"image_quality": quality}
+    env = gym.make(env_id, cameras=TWO, image_size=84, **kwargs)
     other = gym.make(env_id)  # a state from elsewhere, restored into the env with cameras
     other.reset(seed=9)
     other.action_space.seed(9)
     for _ in range(3):
         other.step(other.action_space.sample())
-    with StateRenderer(env_id, {}, 84, 84) as reference:
+    with StateRenderer(env_id, {}, 84, 84, quality) as reference:
         obs, _ = env.reset(seed=3)
         observed = [(obs, env.unwrapped.get_state())]
         for action in ([1.0, 0.5, -1.0, -1.0], [-0.5, 1.0, 1.0, 1.0]):
@@ -68,6 +70,27 @@ def test_images_are_the_ones_the_dataset_records_for_the_state(env_id: str) -> N
     assert not np.array_equal(observed[0][0]["front_image"], observed[-1][0]["front_image"])  # the images move
     env.close()
     other.close()
+
+
+def test_fast_images_draw_the_same_scene_without_multisampling_or_reflection() -> None:
+    """The two qualities differ (edges, the room floor's reflection) but show the same scene; making a fast
+    renderer leaves the model's multisampling as it was, for the env's other renderers."""
+    env = gym.make("Bin-pick-v2", cameras=("front",), image_size=64)
+    base: Any = env.unwrapped
+    samples = int(base.model.vis.quality.offsamples)
+    fast = env.reset(seed=2)[0]["front_image"]
+    assert int(base.model.vis.quality.offsamples) == samples > 0
+    with StateRenderer("Bin-pick-v2", {}, 64, 64, "full") as full:
+        sharp = full.frame(base.get_state(), "front")
+    differ = np.any(fast != sharp, axis=-1)
+    assert 0 < differ.mean() < 0.5
+    assert np.abs(fast.astype(int) - sharp.astype(int)).mean() < 10
+    env.close()
+
+
+def test_a_bad_image_quality_is_one_line_naming_the_choices() -> None:
+    with pytest.raises(FetchError, match=r"^image_quality 'best': choose one of fast, full$"):
+        gym.make("Reach-v2", cameras=("front",), image_quality="best")
 
 
 def test_the_image_keys_are_the_dataset_s() -> None:

@@ -64,7 +64,7 @@ def test_a_pixel_policy_records_what_it_sees(torch, run: pathlib.Path) -> None: 
     state = torch.load(run / "checkpoint.pt", weights_only=True)
     policy = state["policy"]
     assert policy["kind"] == "cnn-chunk" and tuple(policy["cameras"]) == ("front", "wrist")
-    assert policy["image_size"] == SIZE
+    assert policy["image_size"] == SIZE and policy["image_quality"] == "fast"  # the data's (collect's default)
     layout = gym.make("PickPlace-v2").unwrapped.observation_layout
     seen = {i for name in PROPRIOCEPTION for i in range(layout[name].start, layout[name].stop)}
     assert set(policy["blind"]) == set(unseen_by_pixels(layout, policy["goal_offsets"]))
@@ -80,7 +80,7 @@ def test_the_pixel_policy_acts_the_same_with_the_objects_state_replaced_by_nan(t
     from fetch.learn.data import PROPRIOCEPTION
 
     policy = fetch.learn.load(run)
-    assert policy.observation_kwargs == {"cameras": ("front", "wrist"), "image_size": SIZE}
+    assert policy.observation_kwargs == {"cameras": ("front", "wrist"), "image_size": SIZE, "image_quality": "fast"}
     env = gym.make(policy.env_id, **policy.env_kwargs, **policy.observation_kwargs)
     layout = env.unwrapped.observation_layout
     readings = [i for name in PROPRIOCEPTION for i in range(layout[name].start, layout[name].stop)]
@@ -241,3 +241,26 @@ def test_asking_for_cuda_where_there_is_none_is_one_line(torch, seen: pathlib.Pa
     assert _train(seen, tmp_path / "run", "--inputs", "pixels", "--steps", "5", "--accelerator", "cuda") == 2
     err = _error(capsys)
     assert len(err.splitlines()) == 1 and "--accelerator cuda: torch sees no CUDA device" in err, err
+
+
+def test_a_pixel_policy_saved_before_image_quality_was_recorded_sees_full_images(
+        torch, run: pathlib.Path, tmp_path: pathlib.Path) -> None:  # noqa: ANN001
+    """Its images were drawn at "full", the only quality there was: it is run, and goes on training, so."""
+    import io
+
+    import fetch.learn
+    from fetch.learn import checkpoint
+
+    state = torch.load(run / "checkpoint.pt", weights_only=True)
+    del state["policy"]["image_quality"]
+    old = tmp_path / "old"
+    old.mkdir()
+    buffer = io.BytesIO()
+    torch.save(state, buffer)
+    checkpoint.write(old, buffer.getvalue())
+    policy = fetch.learn.load(old)
+    assert policy.observation_kwargs["image_quality"] == "full"
+    env = gym.make(policy.env_id, **policy.env_kwargs, **policy.observation_kwargs)
+    obs, _ = env.reset(seed=5)
+    assert np.isfinite(policy(obs)).all()
+    env.close()

@@ -39,12 +39,14 @@ def check_cameras(model: mujoco.MjModel, cameras: Sequence[str] | None, image_si
 
 class CameraImages:
     """Renders `cameras` of one model at `size` x `size` [px] for the observation dict, as the dataset's
-    images are rendered (`dataset.frames.StateRenderer`: the same renderer, settings and size), so an
-    image here equals the one `collect --cameras` or `render-obs` records for the same state. The GL
-    renderer is made on first use and released by `close`."""
+    images are rendered (`dataset.frames.StateRenderer`: the same renderer, settings, size and `quality`,
+    `rendering.IMAGE_QUALITIES`), so an image here equals the one `collect --cameras` or `render-obs` records
+    for the same state. The GL renderer is made on first use and released by `close`."""
 
-    def __init__(self, model: mujoco.MjModel, cameras: tuple[str, ...], size: int, hide_goal: bool) -> None:
+    def __init__(self, model: mujoco.MjModel, cameras: tuple[str, ...], size: int, hide_goal: bool,
+                 quality: str = rendering.DEFAULT_IMAGE_QUALITY) -> None:
         self.model, self.cameras, self.size, self.hide_goal = model, cameras, size, hide_goal
+        self.quality = rendering.check_image_quality(quality, "image_quality")
         self.keys = tuple(image_key(c) for c in cameras)
         self.renderer: rendering.OffscreenRenderer | None = None
 
@@ -56,7 +58,7 @@ class CameraImages:
     def render(self, data: mujoco.MjData) -> dict[str, np.ndarray]:
         """Each camera's image of `data` as it is now (its kinematics current), a fresh array each."""
         if self.renderer is None:
-            self.renderer = rendering.OffscreenRenderer(self.model, self.size, self.size)
+            self.renderer = rendering.OffscreenRenderer(self.model, self.size, self.size, self.quality)
         renderer = self.renderer
         return {key: renderer.render(data, camera, hide_goal=self.hide_goal)
                 for key, camera in zip(self.keys, self.cameras, strict=True)}

@@ -15,6 +15,7 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     from fetch.dataset.formats import FORMATS
     from fetch.learn import device as _  # noqa: F401  (registers --device policy, from the layer above teleop)
     from fetch.learn import takeover as _takeover  # noqa: F401  (registers --device takeover)
+    from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES, QUALITY_HELP
     from fetch.tasks import ENV_IDS
     from fetch.teleop.config import RENDER_CHOICES
     from fetch.teleop.registry import DEVICE_NAMES, KINDS
@@ -56,6 +57,7 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cameras", default="",
                    help="record these cameras' images too, comma-separated (front, side, behind, wrist); default none")
     p.add_argument("--image-size", type=int, default=84, help="recorded image width and height [px] (default 84)")
+    p.add_argument("--image-quality", default=DEFAULT_IMAGE_QUALITY, choices=IMAGE_QUALITIES, help=QUALITY_HELP)
     p.add_argument("--verbose", action="store_true", help="print how every attempt ended (default off)")
     for kind in KINDS:
         if kind.add_arguments is not None:

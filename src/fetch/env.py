@@ -147,7 +147,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     (world frame); a[3] opens (+1) or closes (-1) the fingers. dt = 0.04 s.
     `model`, `data` are the MjModel / MjData; `observation_layout` names the observation's slices.
     `cameras` adds each camera's `image_size` x `image_size` uint8 RGB image of the observed state to the
-    observation, as "<camera>_image" (camera_obs.py; `hide_goal` hides the marker there too).
+    observation, as "<camera>_image" (camera_obs.py; `hide_goal` hides the marker there too), drawn at
+    `image_quality` (`rendering.IMAGE_QUALITIES`: "fast", the default, or "full").
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": round(1.0 / CONTROL_DT)}
@@ -155,7 +156,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def __init__(self, task: str = "pick_place", reward_type: str = "sparse",
                  render_mode: str | None = None, width: int = 480, height: int = 480,
                  camera_name: str = "front", hide_goal: bool = False, cameras: Sequence[str] = (),
-                 image_size: int = camera_obs.DEFAULT_IMAGE_SIZE) -> None:
+                 image_size: int = camera_obs.DEFAULT_IMAGE_SIZE,
+                 image_quality: str = rendering.DEFAULT_IMAGE_QUALITY) -> None:
         if reward_type not in REWARD_TYPES:
             raise UnknownNameError("reward_type", reward_type, REWARD_TYPES)
         if render_mode is not None and render_mode not in RENDER_MODES:
@@ -164,7 +166,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             raise FetchError(f"width and height must be positive pixels, got {width}x{height}")
         self._kwargs = dict(task=task, reward_type=reward_type, render_mode=render_mode,
                             width=int(width), height=int(height), camera_name=camera_name,
-                            hide_goal=hide_goal, cameras=cameras, image_size=image_size)
+                            hide_goal=hide_goal, cameras=cameras, image_size=image_size,
+                            image_quality=image_quality)
         compiled = _compile(task_class(task))
         self.task: Task = task_class(task)()
         self.model: mujoco.MjModel = copy.copy(compiled.model)
@@ -177,7 +180,9 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._start = compiled.start
         rendering.check_camera(self.model, camera_name)
         names = camera_obs.check_cameras(self.model, cameras, image_size)
-        self._images = camera_obs.CameraImages(self.model, names, int(image_size), hide_goal) if names else None
+        rendering.check_image_quality(image_quality, "image_quality")
+        self._images = (camera_obs.CameraImages(self.model, names, int(image_size), hide_goal, image_quality)
+                        if names else None)
         self.reward_type = reward_type
         self.render_mode = render_mode
         self.width, self.height = int(width), int(height)

@@ -61,13 +61,37 @@ def _scene_option(hide_goal: bool) -> mujoco.MjvOption:
     return option
 
 
-class OffscreenRenderer:
-    """Renders the env's data from a named camera into an array, without a display."""
+IMAGE_QUALITIES = ("fast", "full")
+"""How a camera image for a policy or a dataset is drawn. "full" is the scene as the viewer shows it: 4x
+multisampling (the scenes' `offsamples`) and the room floor's reflection. "fast" draws one sample per pixel
+and no reflection: 2-4x the frames per core of a software renderer (docs/rendering.md), the same shapes,
+lights and shadows, harder edges. Datasets recorded before there was a choice hold "full" images."""
+DEFAULT_IMAGE_QUALITY = "fast"
+"""What `cameras=` observations, `collect --cameras`, `generate --cameras` and `render-obs` draw unless told."""
+QUALITY_HELP = ("how the images are drawn: fast (the default): one sample per pixel and no floor reflection, "
+                "2-4x the frames per core of a software renderer; full: as the viewer shows the scene (4x "
+                "multisampling, reflections)")
 
-    def __init__(self, model: mujoco.MjModel, width: int, height: int, simple: bool = False) -> None:
+
+def check_image_quality(quality: str, flag: str) -> str:
+    """`quality` when it is one of `IMAGE_QUALITIES`, else a one-line FetchError naming them."""
+    if quality not in IMAGE_QUALITIES:
+        raise FetchError(f"{flag} {quality!r}: choose one of {', '.join(IMAGE_QUALITIES)}")
+    return quality
+
+
+class OffscreenRenderer:
+    """Renders the env's data from a named camera into an array, without a display, at `quality`
+    (`IMAGE_QUALITIES`; "full": as the viewer shows the scene)."""
+
+    def __init__(self, model: mujoco.MjModel, width: int, height: int, quality: str = "full") -> None:
+        check_image_quality(quality, "image quality")
         # The offscreen buffer must hold the image; this model is the env's own copy.
         model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
         model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
+        samples = int(model.vis.quality.offsamples)
+        if quality == "fast":  # read when the GL context is made: this renderer's alone
+            model.vis.quality.offsamples = 0
         try:
             self._renderer = make_renderer(model, height=height, width=width)
         except FetchError:
@@ -77,10 +101,11 @@ class OffscreenRenderer:
                 f"offscreen rendering failed with the {backend()} OpenGL backend "
                 f"(MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}): {exc}. Set MUJOCO_GL=egl "
                 "(libEGL, from libegl1) or osmesa (apt-get install libosmesa6)") from exc
+        finally:
+            model.vis.quality.offsamples = samples
         self._options = {hide: _scene_option(hide) for hide in (False, True)}
         self._depth = False
-        # Reflections and the skybox cost a third of a software-rendered frame (llvmpipe).
-        self._off = (mujoco.mjtRndFlag.mjRND_REFLECTION, mujoco.mjtRndFlag.mjRND_SKYBOX) if simple else ()
+        self._off = (mujoco.mjtRndFlag.mjRND_REFLECTION,) if quality == "fast" else ()
 
     def render(self, data: mujoco.MjData, camera: str, depth: bool = False,
                hide_goal: bool = False) -> np.ndarray:

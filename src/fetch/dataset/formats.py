@@ -14,6 +14,7 @@ from fetch.dataset import schema
 from fetch.dataset.background import BackgroundWriter
 from fetch.dataset.episode import Demo
 from fetch.errors import FetchError, UnknownNameError
+from fetch.rendering import DEFAULT_IMAGE_QUALITY
 
 FORMATS = ("hdf5", "npz")
 """`collect --format` choices; the first is the default."""
@@ -26,16 +27,19 @@ def check_format(format: str, cameras: tuple[str, ...] = ()) -> None:
         raise FetchError("--cameras needs --format hdf5 (the seed's npz files hold no images)")
 
 
-def recorded_layout(env: gym.Env, cameras: tuple[str, ...] = (), image_size: int = 0) -> schema.Layout:
-    """What a demo of `env` holds: its observation keys' sizes, its state size, the cameras' images."""
+def recorded_layout(env: gym.Env, cameras: tuple[str, ...] = (), image_size: int = 0,
+                    image_quality: str = DEFAULT_IMAGE_QUALITY) -> schema.Layout:
+    """What a demo of `env` holds: its observation keys' sizes, its state size, the cameras' images (of
+    `image_size` [px], drawn at `image_quality`)."""
     space = env.observation_space
     sizes = tuple((key, int(space[key].shape[0])) for key in schema.OBS_KEYS)  # type: ignore[index]
     return schema.Layout(obs_sizes=sizes, state_size=env.unwrapped.state_size,  # type: ignore[attr-defined]
-                         cameras=cameras, image_size=image_size if cameras else 0)
+                         cameras=cameras, image_size=image_size if cameras else 0,
+                         image_quality=image_quality if cameras else "full")
 
 
 def open_writer(format: str, out: str, env: gym.Env, *, settings: dict[str, Any], device: str,
-                cameras: tuple[str, ...] = (), image_size: int = 0,
+                cameras: tuple[str, ...] = (), image_size: int = 0, image_quality: str = DEFAULT_IMAGE_QUALITY,
                 on_saved: Callable[[str, Demo], None] | None = None) -> BackgroundWriter:
     """The writer of `format` for the directory `out`: resumes what is there (if it matches) and locks it.
     `settings` are what a resumed session must match (hdf5) or are recorded (npz)."""
@@ -52,7 +56,7 @@ def open_writer(format: str, out: str, env: gym.Env, *, settings: dict[str, Any]
     from fetch.dataset.writer import DatasetWriter, Header, package_versions
 
     header = Header(env_id=env_id, env_kwargs={"reward_type": base.reward_type},
-                    layout=recorded_layout(env, cameras, image_size), settings=settings,
+                    layout=recorded_layout(env, cameras, image_size, image_quality), settings=settings,
                     model_xml=base.model_xml(), model_hash=base.model_hash(), versions=package_versions(),
                     legacy_model_hash=base.legacy_model_hash())
     return DatasetWriter(out, header, on_saved)

@@ -36,9 +36,11 @@ def check_env_camera(env_id: str, env_kwargs: dict[str, Any], camera: str) -> No
 
 
 class StateRenderer:
-    """Renders states of one env (id and kwargs, as a dataset records them) offscreen."""
+    """Renders states of one env (id and kwargs, as a dataset records them) offscreen, at `quality`
+    (`rendering.IMAGE_QUALITIES`: a dataset's images at its layout's, a video for people at "full")."""
 
-    def __init__(self, env_id: str, env_kwargs: dict[str, Any], width: int, height: int) -> None:
+    def __init__(self, env_id: str, env_kwargs: dict[str, Any], width: int, height: int,
+                 quality: str = "full") -> None:
         import fetch  # noqa: F401  (registers the ids; picks an offscreen GL backend)
         from fetch.rendering import OffscreenRenderer, camera_names
 
@@ -50,7 +52,7 @@ class StateRenderer:
         self.cameras = camera_names(model)
         self.width, self.height = width, height
         # The same renderer and settings as `collect --cameras`: images match those recorded live.
-        self._renderer = OffscreenRenderer(model, width, height)
+        self._renderer = OffscreenRenderer(model, width, height, quality)
 
     def check_camera(self, camera: str) -> None:
         from fetch.rendering import check_camera
@@ -88,14 +90,14 @@ class StateRenderer:
 _process_renderer: list[StateRenderer] = []
 
 
-def _start_process(env_id: str, env_kwargs: dict[str, Any], size: int, nice: int, parent: int) -> None:
+def _start_process(env_id: str, env_kwargs: dict[str, Any], size: int, quality: str, nice: int, parent: int) -> None:
     start_worker(parent)
     # Software GL (llvmpipe) starts a thread per core in every process; one thread each keeps
     # parallel workers (and a collector's control loop) from contending, unless the user says otherwise.
     os.environ.setdefault("LP_NUM_THREADS", "1")
     if nice:
         os.nice(nice)
-    _process_renderer.append(StateRenderer(env_id, env_kwargs, size, size))
+    _process_renderer.append(StateRenderer(env_id, env_kwargs, size, size, quality))
 
 
 def _render_in_process(path: str, cameras: Sequence[str]) -> dict[str, np.ndarray]:
@@ -126,10 +128,12 @@ def _remove_stale_dirs() -> None:
 
 
 class RenderPool:
-    """`workers` processes that render states to square `size` images; `nice` lowers their priority."""
+    """`workers` processes that render states to square `size` images at `quality` (`StateRenderer`'s);
+    `nice` lowers their priority."""
 
-    def __init__(self, env_id: str, env_kwargs: dict[str, Any], size: int, workers: int = 1, nice: int = 0) -> None:
-        self._workers, self._initargs = workers, (env_id, env_kwargs, size, nice, os.getpid())
+    def __init__(self, env_id: str, env_kwargs: dict[str, Any], size: int, workers: int = 1, nice: int = 0,
+                 quality: str = "full") -> None:
+        self._workers, self._initargs = workers, (env_id, env_kwargs, size, quality, nice, os.getpid())
         self._pool = self._start()
         # The states go to the workers as files, and only their paths through the pool's pipe. A
         # demo's states fill that pipe (64 KiB), and on a Python without the fix for CPython gh-94777

@@ -28,9 +28,9 @@ class _Job:
 
 def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: int,
                  jobs: Iterable[tuple[str, np.ndarray | None]],
-                 cameras: Sequence[str]) -> Iterator[dict[str, np.ndarray] | None]:
+                 cameras: Sequence[str], quality: str = "full") -> Iterator[dict[str, np.ndarray] | None]:
     """For each (demo name, its states (N, state size)), the images per camera ((N, size, size, 3)
-    uint8), in order; None for None. At most 2 x `workers` demos are in flight, not every demo's
+    uint8, drawn at `quality`), in order; None for None. At most 2 x `workers` demos are in flight, not every demo's
     images at once. A worker that dies is replaced `RESTARTS` times at most (said on stderr)."""
     from fetch.dataset.frames import RenderPool
 
@@ -38,7 +38,7 @@ def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: in
     source = iter(jobs)
     pending: collections.deque[_Job] = collections.deque()
     restarts = RESTARTS
-    pool = RenderPool(env_id, env_kwargs, size, workers)
+    pool = RenderPool(env_id, env_kwargs, size, workers, quality=quality)
     try:
         while True:
             try:

@@ -26,7 +26,7 @@ from fetch.dataset.durable import Rewrites, editing
 from fetch.dataset.reader import FILE_HELP, open_dataset, resolve
 from fetch.dataset.validation import require_valid
 from fetch.errors import DatasetError, FetchError
-from fetch.rendering import check_image_size
+from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES, QUALITY_HELP, check_image_quality, check_image_size
 from fetch.stopping import raise_if_stopped
 
 
@@ -60,15 +60,18 @@ def _store(group: h5py.Group, key: str, images: np.ndarray) -> None:
         group.create_dataset(path, data=rows, **options)
 
 
-def _with_camera(layout: schema.Layout, camera: str, size: int) -> schema.Layout:
+def _with_camera(layout: schema.Layout, camera: str, size: int, quality: str) -> schema.Layout:
     cameras = layout.cameras if camera in layout.cameras else (*layout.cameras, camera)
-    return layout.with_cameras(cameras, size)
+    return layout.with_cameras(cameras, size, quality)
 
 
 def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: int | None = None,
-               overwrite: bool = False) -> RenderReport:
-    """Add `obs/<camera>_image` and `next_obs/<camera>_image` (uint8, (T, size, size, 3)) to every demo."""
+               overwrite: bool = False, quality: str | None = None) -> RenderReport:
+    """Add `obs/<camera>_image` and `next_obs/<camera>_image` (uint8, (T, size, size, 3)) to every demo,
+    drawn at `quality` (`rendering.IMAGE_QUALITIES`; None: the dataset's other images', else the default)."""
     check_image_size(size, "--size")
+    if quality is not None:
+        check_image_quality(quality, "--quality")
     workers = default_workers() if workers is None else workers
     if workers < 1:
         raise FetchError(f"--workers must be at least 1, got {workers}")
@@ -82,6 +85,12 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
         if layout.cameras and size != layout.image_size:
             raise FetchError(f"{index} holds {layout.image_size}-pixel images ({', '.join(layout.cameras)}); a "
                              f"dataset has one image size, so use --size {layout.image_size}")
+        others = [c for c in layout.cameras if c != camera]
+        if quality is None:
+            quality = layout.image_quality if layout.cameras else DEFAULT_IMAGE_QUALITY
+        elif others and quality != layout.image_quality:
+            raise FetchError(f"{index} holds {layout.image_quality}-quality images ({', '.join(others)}); a "
+                             f"dataset has one image quality, so use --quality {layout.image_quality}")
         if camera in layout.cameras and not overwrite:
             raise FetchError(f"{index} already has {schema.image_key(camera)}; pass --overwrite to render it again")
         from fetch.dataset.frames import check_env_camera
@@ -90,9 +99,9 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
         start = time.perf_counter()
         frames = 0
         key = schema.image_key(camera)
-        new_layout = schema.layout_to_json(_with_camera(layout, camera, size))
+        new_layout = schema.layout_to_json(_with_camera(layout, camera, size, quality))
         workers = min(workers, max(1, len(names)))
-        results = _rendered(index, env_id, env_kwargs, size, camera, names, workers)
+        results = _rendered(index, env_id, env_kwargs, size, quality, camera, names, workers)
         try:
             with Rewrites() as rewrites:  # every file changes once all demos are rendered, or none does
                 for name, images in progress(results, len(names), f"render {camera}"):
@@ -111,14 +120,15 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
         return RenderReport(len(names), frames, time.perf_counter() - start, workers)
 
 
-def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size: int, camera: str,
+def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size: int, quality: str, camera: str,
               names: list[str], workers: int) -> Iterator[tuple[str, np.ndarray]]:
     """(name, images) in the order of `names`, rendered by `workers` processes."""
     from fetch.dataset.render_ahead import render_ahead
 
     with open_dataset(index) as ds:
         jobs = ((name, ds.demo(name)["states"][()]) for name in names)
-        for name, images in zip(names, render_ahead(env_id, env_kwargs, size, workers, jobs, (camera,)), strict=True):
+        for name, images in zip(names, render_ahead(env_id, env_kwargs, size, workers, jobs, (camera,),
+                                                                   quality), strict=True):
             assert images is not None  # every demo has states
             yield name, images[camera]
 
@@ -133,12 +143,16 @@ def add_render_obs_parser(sub: argparse._SubParsersAction) -> None:  # type: ign
     o.add_argument("file", help=FILE_HELP)
     o.add_argument("--camera", required=True, help="a camera of the env, e.g. front or wrist")
     o.add_argument("--size", type=int, default=84, help="image width and height [px] (default 84)")
+    o.add_argument("--quality", default=None, choices=IMAGE_QUALITIES,
+                   help=QUALITY_HELP.replace("the default", "the default for a dataset without images; one with "
+                                             "images keeps theirs"))
     o.add_argument("--workers", type=int, default=None, help="render processes (default: one per core)")
     o.add_argument("--overwrite", action="store_true", help="render a camera the dataset already has again")
     o.set_defaults(run=run_render_obs)
 
 
 def run_render_obs(args: argparse.Namespace) -> int:
-    report = render_obs(args.file, args.camera, args.size, workers=args.workers, overwrite=args.overwrite)
+    report = render_obs(args.file, args.camera, args.size, workers=args.workers, overwrite=args.overwrite,
+                        quality=args.quality)
     print(describe(report, args.camera, args.file))
     return 0

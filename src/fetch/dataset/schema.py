@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from fetch.camera_obs import image_key  # the env's observation key is the dataset's
+from fetch.rendering import IMAGE_QUALITIES
 
 FORMAT = "gym-fetch-v2/demos"
 FORMAT_VERSION = 1
@@ -46,10 +47,15 @@ class Layout:
     state_size: int
     cameras: tuple[str, ...] = ()
     image_size: int = 0
+    image_quality: str = "full"
+    """how the images are drawn (`rendering.IMAGE_QUALITIES`); a layout without one (recorded before there
+    was a choice) holds "full" images."""
 
     def __post_init__(self) -> None:
         if self.cameras and self.image_size <= 0:
             raise ValueError(f"image_size must be positive pixels when cameras are recorded, got {self.image_size}")
+        if self.image_quality not in IMAGE_QUALITIES:
+            raise ValueError(f"image_quality must be one of {', '.join(IMAGE_QUALITIES)}, got {self.image_quality!r}")
 
     @property
     def obs_keys(self) -> tuple[str, ...]:
@@ -76,8 +82,8 @@ class Layout:
         ]
         return tuple(out)
 
-    def with_cameras(self, cameras: tuple[str, ...], image_size: int) -> Layout:
-        return dataclasses.replace(self, cameras=cameras, image_size=image_size)
+    def with_cameras(self, cameras: tuple[str, ...], image_size: int, image_quality: str) -> Layout:
+        return dataclasses.replace(self, cameras=cameras, image_size=image_size, image_quality=image_quality)
 
 
 OPTIONAL_FIELDS: tuple[Field, ...] = (
@@ -158,7 +164,8 @@ DATA_ATTRS: tuple[tuple[str, str], ...] = (
     ("versions", "JSON: fetch, mujoco, gymnasium, numpy, h5py versions that created the file"),
     ("created", "[s] Unix time the dataset was created"),
     ("settings", "JSON: the collection settings a resumed session must match"),
-    ("layout", "JSON: observation sizes, state size, cameras, image size"),
+    ("layout", "JSON: observation sizes, state size, cameras, image size and, with cameras, image quality "
+               "(`fast` or `full`; absent: `full`)"),
     ("model_xml", "the compiled MuJoCo model as MJCF"),
     ("model_hash", "SHA-256 of the compiled model (MJB, asset files by relative name, so the same on any "
                    "install); a resumed session or a merge must match it"),
@@ -174,14 +181,18 @@ TOOL_ATTRS: tuple[tuple[str, str], ...] = (
 
 
 def layout_to_json(layout: Layout) -> str:
-    return json.dumps({"obs_sizes": [list(x) for x in layout.obs_sizes], "state_size": layout.state_size,
-                       "cameras": list(layout.cameras), "image_size": layout.image_size})
+    raw = {"obs_sizes": [list(x) for x in layout.obs_sizes], "state_size": layout.state_size,
+           "cameras": list(layout.cameras), "image_size": layout.image_size}
+    if layout.cameras:  # without images the JSON is as it was before image_quality existed
+        raw["image_quality"] = layout.image_quality
+    return json.dumps(raw)
 
 
 def layout_from_json(text: str) -> Layout:
     raw = json.loads(text)
     return Layout(obs_sizes=tuple((str(k), int(n)) for k, n in raw["obs_sizes"]), state_size=int(raw["state_size"]),
-                  cameras=tuple(raw.get("cameras", ())), image_size=int(raw.get("image_size", 0)))
+                  cameras=tuple(raw.get("cameras", ())), image_size=int(raw.get("image_size", 0)),
+                  image_quality=str(raw.get("image_quality", "full")))
 
 
 def demo_name(index: int) -> str:

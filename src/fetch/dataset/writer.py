@@ -76,6 +76,14 @@ def package_versions() -> dict[str, str]:
             "python": sys.version.split()[0]}
 
 
+def _same_layout(recorded: Any, layout: schema.Layout) -> bool:
+    """Whether a dataset's layout attribute describes `layout` (its JSON may predate a field)."""
+    try:
+        return isinstance(recorded, str) and schema.layout_from_json(recorded) == layout
+    except (ValueError, KeyError, TypeError):
+        return False
+
+
 @dataclasses.dataclass
 class _Entry:
     name: str
@@ -229,6 +237,8 @@ class DatasetWriter(BackgroundWriter):
                 "settings": h.settings, "model_hash": h.model_hash}
         if h.legacy_model_hash and attrs.get("model_hash") == h.legacy_model_hash:
             mine["model_hash"] = h.legacy_model_hash  # recorded before the hash was install-independent
+        if _same_layout(attrs.get("layout"), h.layout):
+            mine["layout"] = attrs["layout"]  # the same layout, written before image_quality existed
         differences = [f"{key}: the dataset has {attrs.get(key)!r}, this session {value!r}"
                        for key, value in mine.items() if attrs.get(key) != value]
         if differences:
@@ -336,7 +346,8 @@ class DatasetWriter(BackgroundWriter):
 
         if self._renderer is None:
             h = self.header
-            self._renderer = RenderPool(h.env_id, h.env_kwargs, h.layout.image_size, workers=1, nice=10)
+            self._renderer = RenderPool(h.env_id, h.env_kwargs, h.layout.image_size, workers=1, nice=10,
+                                        quality=h.layout.image_quality)
         restarts = RESTARTS
         while True:
             try:

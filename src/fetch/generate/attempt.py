@@ -125,10 +125,11 @@ def rng_for(seed: int, number: int) -> np.random.Generator:
 class Generator:
     """Makes attempts in one env from a fixed set of source segments (`sources[d][k]`: demo d's
     segment of subtask k). With `cameras`, a successful attempt's images are rendered from its states at
-    `image_size` [px], as `collect --cameras` and `render-obs` render them (`StateRenderer`)."""
+    `image_size` [px] and `image_quality`, as `collect --cameras` and `render-obs` render them (`StateRenderer`)."""
 
     def __init__(self, env_id: str, env_kwargs: dict[str, Any], sources: Sequence[Sequence[Segment]],
-                 options: Options, seed: int, cameras: tuple[str, ...] = (), image_size: int = 0) -> None:
+                 options: Options, seed: int, cameras: tuple[str, ...] = (), image_size: int = 0,
+                 image_quality: str = "fast") -> None:
         if options.max_steps is None:
             raise FetchError("Options.max_steps must be set before attempts are made (generate sets it)")
         self.max_steps: int = options.max_steps
@@ -143,6 +144,7 @@ class Generator:
         self.options = options
         self.seed = seed
         self.env_kwargs, self.cameras, self.image_size = env_kwargs, cameras, image_size
+        self.image_quality = image_quality
         self._renderer: StateRenderer | None = None  # made at the first success that needs images
         self.scene = Scene(base.model)
         self.buffer = EpisodeBuffer(recorded_layout(self.env), capacity=self.max_steps)
@@ -256,7 +258,8 @@ class Generator:
         if not self.cameras:
             return {}
         if self._renderer is None:
-            self._renderer = StateRenderer(self.env_id, self.env_kwargs, self.image_size, self.image_size)
+            self._renderer = StateRenderer(self.env_id, self.env_kwargs, self.image_size, self.image_size,
+                                           self.image_quality)
         return {camera: self._renderer.frames(states, camera) for camera in self.cameras}
 
     def _step(self, target: np.ndarray, grip: float, opening: float | None, rng: np.random.Generator,

@@ -7,7 +7,7 @@ from typing import Any
 
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.dataset.reader import FILE_HELP
-from fetch.rendering import CAMERAS
+from fetch.rendering import CAMERAS, DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES, QUALITY_HELP
 
 SUBTASKS_HELP = "cut a dataset's demos into their task's subtasks and print where each begins"
 
@@ -46,6 +46,7 @@ def add_generate_parser(sub: Any) -> None:
                         "each demo's states in the workers as collect --cameras records them; default none")
     g.add_argument("--image-size", type=int, default=DEFAULT_IMAGE_SIZE,
                    help=f"recorded image width and height [px] (default {DEFAULT_IMAGE_SIZE})")
+    g.add_argument("--image-quality", default=DEFAULT_IMAGE_QUALITY, choices=IMAGE_QUALITIES, help=QUALITY_HELP)
     g.set_defaults(run=run_generate)
     s = sub.add_parser("subtasks", help=SUBTASKS_HELP)
     s.add_argument("file", help=FILE_HELP)
@@ -62,7 +63,7 @@ def run_generate(args: argparse.Namespace) -> int:
     cameras = tuple(c.strip() for c in args.cameras.split(",") if c.strip())  # as collect's --cameras
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
                             workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray,
-                            cameras=cameras, image_size=args.image_size)
+                            cameras=cameras, image_size=args.image_size, image_quality=args.image_quality)
     summary = generate(config)
     print(summary.describe())
     return 1 if summary.gave_up else 0

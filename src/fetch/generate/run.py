@@ -27,7 +27,7 @@ from fetch.errors import FetchError
 from fetch.generate.attempt import Options, Result
 from fetch.generate.sources import Sources, load_sources
 from fetch.generate.workers import Backend, Pool, RayCluster, Serial, Work, default_workers
-from fetch.rendering import check_camera_list, check_image_size
+from fetch.rendering import DEFAULT_IMAGE_QUALITY, check_camera_list, check_image_quality, check_image_size
 
 MAX_SEED = 2**62
 LOW_YIELD = (200, 0.05)
@@ -56,6 +56,8 @@ class GenerateConfig:
     """record these cameras' images too (`obs/<camera>_image`, `next_obs/...`), rendered in the workers."""
     image_size: int = DEFAULT_IMAGE_SIZE
     """[px] the images' width and height."""
+    image_quality: str = DEFAULT_IMAGE_QUALITY
+    """how the images are drawn (`rendering.IMAGE_QUALITIES`)."""
 
     def __post_init__(self) -> None:
         if self.demos < 1:
@@ -71,6 +73,7 @@ class GenerateConfig:
         if isinstance(self.cameras, str):
             raise FetchError(f"cameras must be a sequence of camera names, e.g. cameras=({self.cameras!r},)")
         check_image_size(self.image_size, "--image-size")  # as collect's: checked with no cameras too
+        check_image_quality(self.image_quality, "--image-quality")
         check_camera_list(self.cameras)
 
 
@@ -118,20 +121,21 @@ def _resume_point(out: str) -> tuple[int, int | None]:
         return len(ds.demo_names), max(int(ds.attrs(n)["attempt"]) for n in ds.demo_names)
 
 
-def _images(cameras: tuple[str, ...], size: int) -> str:
-    return f"--cameras {','.join(cameras)} --image-size {size}" if cameras else "no --cameras"
+def _images(cameras: tuple[str, ...], size: int, quality: str) -> str:
+    return f"--cameras {','.join(cameras)} --image-size {size} --image-quality {quality}" if cameras else "no --cameras"
 
 
-def require_same_images(out: str, cameras: tuple[str, ...], size: int) -> None:
-    """One line naming both when `out` holds a dataset recorded with other cameras or another image size
-    (the writer refuses every difference, this one among them, but in several lines)."""
+def require_same_images(out: str, cameras: tuple[str, ...], size: int, quality: str) -> None:
+    """One line naming both when `out` holds a dataset recorded with other cameras, another image size or
+    quality (the writer refuses every difference, this one among them, but in several lines)."""
     if not (pathlib.Path(out) / schema.INDEX_NAME).is_file():
         return
     with open_dataset(out) as ds:
-        had = (ds.layout.cameras, ds.layout.image_size if ds.layout.cameras else 0)
-    if had != (cameras, size if cameras else 0):
-        raise FetchError(f"{out} holds demos with {_images(*had)}, this run asks for {_images(cameras, size)}; "
-                         "use the same, or another --out")
+        layout = ds.layout
+    had = (layout.cameras, layout.image_size, layout.image_quality) if layout.cameras else ((), 0, "")
+    if had != ((cameras, size, quality) if cameras else ((), 0, "")):
+        raise FetchError(f"{out} holds demos with {_images(*had)}, this run asks for "
+                         f"{_images(cameras, size, quality)}; use the same, or another --out")
 
 
 def make_backend(config: GenerateConfig, work: Work) -> Backend:
@@ -156,9 +160,10 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
     try:
         base: Any = env.unwrapped
         cameras = check_cameras(base.model, config.cameras, config.image_size)
-        require_same_images(config.out, cameras, config.image_size)
+        require_same_images(config.out, cameras, config.image_size, config.image_quality)
         writer = open_writer("hdf5", config.out, env, settings=settings_of(sources, options, config.seed),
-                             device="generate", cameras=cameras, image_size=config.image_size)
+                             device="generate", cameras=cameras, image_size=config.image_size,
+                             image_quality=config.image_quality)
     finally:
         env.close()
     try:
@@ -169,7 +174,8 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
         if have >= config.demos:
             return summary
         limit = config.max_attempts or 50 * config.demos
-        backend = make_backend(config, Work(sources, options, config.seed, cameras, config.image_size))
+        backend = make_backend(config, Work(sources, options, config.seed, cameras, config.image_size,
+                                                   config.image_quality))
         summary.workers = backend.workers
         started = time.perf_counter()
         bar = _Bar(config.demos, have)

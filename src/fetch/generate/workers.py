@@ -45,10 +45,13 @@ class Work:
     """whose images each successful attempt renders, in the worker (checked by `generate`)."""
     image_size: int = 0
     """[px] their width and height."""
+    image_quality: str = "fast"
+    """how they are drawn (`rendering.IMAGE_QUALITIES`)."""
 
     def generator(self) -> Generator:
         s = self.sources
-        return Generator(s.env_id, s.env_kwargs, s.segments, self.options, self.seed, self.cameras, self.image_size)
+        return Generator(s.env_id, s.env_kwargs, s.segments, self.options, self.seed, self.cameras, self.image_size,
+                         self.image_quality)
 
 
 def _one_gl_thread() -> None:

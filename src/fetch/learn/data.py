@@ -130,6 +130,8 @@ class Demos:
     """The cameras whose images every demo holds (`Episode.images` where loaded with images)."""
     image_size: int = 0
     """[px] their side."""
+    image_quality: str = ""
+    """how they are drawn (`rendering.IMAGE_QUALITIES`)."""
 
     @property
     def horizon(self) -> int:
@@ -169,9 +171,11 @@ def load_demos(path: str | os.PathLike[str], images: bool = False) -> Demos:
         env_id, env_kwargs = ds.env_id, dict(ds.env_kwargs)
         where = ds.path.resolve()
         image_size = ds.layout.image_size if cameras else 0
+        quality = ds.layout.image_quality if cameras else ""
     if not train:
         raise DatasetError(f"{where}: mask/train lists no demo with a step; a policy needs at least one")
-    return Demos(str(where), env_id, env_kwargs, train, valid, seeds, cameras=cameras, image_size=image_size)
+    return Demos(str(where), env_id, env_kwargs, train, valid, seeds, cameras=cameras, image_size=image_size,
+                 image_quality=quality)
 
 
 def load_many(paths: Sequence[str | os.PathLike[str]], correction_weight: int = 1, images: bool = False) -> Demos:
@@ -188,15 +192,17 @@ def load_many(paths: Sequence[str | os.PathLike[str]], correction_weight: int = 
             raise DatasetError(f"{other.origin} holds {other.env_id} {other.env_kwargs} demos and {first.origin} "
                                f"{first.env_id} {first.env_kwargs}: a policy learns one task; train on datasets "
                                "of the same task and settings")
-        if images and other.cameras and first.cameras and other.image_size != first.image_size:
-            raise DatasetError(f"{other.origin} holds {other.image_size} px images and {first.origin} "
-                               f"{first.image_size} px: a pixel policy learns from images of one size")
+        if images and other.cameras and first.cameras and ((other.image_size, other.image_quality)
+                                                             != (first.image_size, first.image_quality)):
+            raise DatasetError(f"{other.origin} holds {other.image_size} px {other.image_quality}-quality images and "
+                               f"{first.origin} {first.image_size} px {first.image_quality}: a pixel policy learns "
+                               "from images of one size and quality")
     cameras = tuple(c for c in first.cameras if all(c in d.cameras for d in loaded))
     train = tuple(e for d in loaded for e in d.train for _ in range(correction_weight if e.corrected else 1))
     return Demos(first.origin if len(loaded) == 1 else " + ".join(d.origin for d in loaded), first.env_id,
                  first.env_kwargs, train, tuple(e for d in loaded for e in d.valid),
                  frozenset().union(*(d.seeds for d in loaded)), tuple(d.origin for d in loaded),
-                 cameras, first.image_size if cameras else 0)
+                 cameras, first.image_size if cameras else 0, first.image_quality if cameras else "")
 
 
 def with_reflections(demos: Demos) -> Demos:

@@ -39,12 +39,14 @@ class PolicyDevice:
         self._cameras: Any = None
         if self.policy.config.cameras:
             # A pixel policy's images are rendered here, from the state the observation describes, as the env
-            # renders them with cameras=, in the look it learnt from (its hide_goal); the dataset keeps its own.
+            # renders them with cameras=, in the look it learnt from (its hide_goal and image quality); the dataset
+            # keeps its own.
             from fetch.camera_obs import CameraImages, check_cameras
 
             cameras = check_cameras(self._env.model, self.policy.config.cameras, self.policy.config.image_size)
             self._cameras = CameraImages(self._env.model, cameras, self.policy.config.image_size,
-                                         bool(self.policy.env_kwargs.get("hide_goal", False)))
+                                         bool(self.policy.env_kwargs.get("hide_goal", False)),
+                                         self.policy.config.image_quality)
 
     def reset(self) -> None:
         self.policy.reset()

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from fetch.errors import FetchError, UnknownNameError
+from fetch.rendering import IMAGE_QUALITIES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -134,6 +135,8 @@ class PolicyConfig(PolicySettings):
     obs_size: int = dataclasses.field(default=0, kw_only=True)
     image_size: int = dataclasses.field(default=0, kw_only=True)
     """[px] the side of the square camera images a pixel policy sees (0: it sees none)."""
+    image_quality: str = dataclasses.field(default="", kw_only=True)
+    """how those images are drawn (`rendering.IMAGE_QUALITIES`; "": it sees none)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -142,11 +145,23 @@ class PolicyConfig(PolicySettings):
         if not isinstance(self.image_size, int) or self.image_size < 0 or bool(self.cameras) != (self.image_size > 0):
             raise FetchError(f"policy image_size must be the images' side in pixels (0 without cameras), got "
                              f"{self.image_size!r}")
+        if (self.image_quality or "") not in (IMAGE_QUALITIES if self.cameras else ("",)):
+            raise FetchError(f"policy image_quality must be one of {', '.join(IMAGE_QUALITIES)} with cameras, \"\" "
+                             f"without, got {self.image_quality!r}")
         if not all(i < self.obs_size for i in self.blind):
             raise FetchError(f"blind must list input entries 0..{self.obs_size - 1}, got {list(self.blind)}")
 
+    @staticmethod
+    def upgraded(raw: Mapping[str, Any]) -> dict[str, Any]:
+        """A checkpoint's policy settings as they are now: a pixel policy saved before the image quality was
+        recorded learnt from "full" images (the only kind there was)."""
+        if "image_quality" in raw:
+            return dict(raw)
+        return {**raw, "image_quality": "full" if raw.get("cameras") else ""}
+
     @classmethod
     def from_dict(cls, raw: dict[str, Any]) -> PolicyConfig:
+        raw = cls.upgraded(raw)
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = set(raw) - known
         if unknown:
@@ -157,5 +172,5 @@ class PolicyConfig(PolicySettings):
     def settings(self) -> PolicySettings:
         """These settings without the input size."""
         raw = self.as_dict()
-        del raw["obs_size"], raw["image_size"]
+        del raw["obs_size"], raw["image_size"], raw["image_quality"]
         return PolicySettings(**raw)

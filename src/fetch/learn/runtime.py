@@ -47,11 +47,12 @@ class Policy:
     @property
     def observation_kwargs(self) -> dict[str, Any]:
         """What `gym.make` needs, beyond `env_kwargs`, for the observations this policy acts on: its cameras'
-        images at its size (`gym.make(policy.env_id, **policy.env_kwargs, **policy.observation_kwargs)`);
+        images at its size and quality (`gym.make(policy.env_id, **policy.env_kwargs, **policy.observation_kwargs)`);
         nothing for a state policy."""
         if not self.config.cameras:
             return {}
-        return {"cameras": self.config.cameras, "image_size": self.config.image_size}
+        return {"cameras": self.config.cameras, "image_size": self.config.image_size,
+                "image_quality": self.config.image_quality}
 
     def reset(self) -> None:
         self._batch: int | None = None

@@ -16,7 +16,7 @@ from typing import Any
 from fetch.dataset.habits import layout_of
 from fetch.errors import FetchError
 from fetch.learn.data import Demos, unseen_by_pixels, velocity_columns
-from fetch.learn.kinds import INPUTS, KINDS, PolicySettings, kind
+from fetch.learn.kinds import INPUTS, KINDS, PolicyConfig, PolicySettings, kind
 from fetch.tasks import Training, registration
 
 AUTO = "auto"
@@ -154,7 +154,7 @@ def plan(request: TrainRequest, demos: Demos, base: dict[str, Any] | None = None
         if request.given() or request.policy != AUTO:
             raise FetchError(f"--from {request.start_from} goes on with that run's policy; leave out "
                              f"{', '.join(request.given()) or '--policy'}")
-        policy = PolicySettings(**{k: v for k, v in base["policy"].items() if k not in ("obs_size", "image_size")})
+        policy = PolicyConfig.from_dict(dict(base["policy"])).settings
         mirror = bool(base["train"].get("mirror", False)) if request.mirror is None else request.mirror
         steps = request.steps if request.steps is not None else _quarter(base)
     else:

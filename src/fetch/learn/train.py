@@ -121,9 +121,11 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     horizon = demos.horizon
     if config.mirror:
         demos = with_reflections(demos)
+    pixels = bool(chosen.policy.cameras)
     policy_config = PolicyConfig(**chosen.policy.as_dict(),
                                  obs_size=policy_inputs(demos.train[0], chosen.policy.goal_offsets).shape[1],
-                                 image_size=demos.image_size if chosen.policy.cameras else 0)
+                                 image_size=demos.image_size if pixels else 0,
+                                 image_quality=demos.image_quality if pixels else "")
     device = accelerator(request.accelerator if isinstance(request, TrainRequest) else "auto")
     torch.set_num_threads(config.threads)
     torch.use_deterministic_algorithms(True)
@@ -131,7 +133,11 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     norm = Normalizer.fit(demos.train, policy_config.goal_offsets, policy_config.blind)
     model = build(policy_config)
     if base is not None:
-        if ckpt.plain(base["policy"]) != ckpt.plain(policy_config.as_dict()):
+        learnt = PolicyConfig.upgraded(base["policy"])
+        if pixels and (learnt["image_size"], learnt["image_quality"]) != (demos.image_size, demos.image_quality):
+            raise FetchError(f"--from {start_from} learnt from {learnt['image_size']} px {learnt['image_quality']}-"
+                             f"quality images; {demos.origin} holds {demos.image_size} px {demos.image_quality}")
+        if ckpt.plain(learnt) != ckpt.plain(policy_config.as_dict()):
             raise FetchError(f"--from {start_from}: its policy has other settings than the ones asked for; leave "
                              "the policy flags out and the run's are used")
         model.load_state_dict(base["model"])
@@ -144,8 +150,8 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     if previous is not None:
         # A run saved before a training setting existed had that setting's default.
         saved = {**dataclasses.asdict(TrainConfig()), **previous["train"]}
-        ckpt.require_same(run, {**previous, "train": saved}, policy_config.as_dict(), dataclasses.asdict(config),
-                          source)
+        ckpt.require_same(run, {**previous, "train": saved, "policy": PolicyConfig.upgraded(previous["policy"])},
+                          policy_config.as_dict(), dataclasses.asdict(config), source)
         model.load_state_dict(previous["model"])
         optimizer.load_state_dict(previous["optimizer"])
         torch.set_rng_state(previous["rng"])

@@ -19,7 +19,8 @@ def config_from_args(args: argparse.Namespace) -> CollectConfig:
         control_hz=args.control_hz, success_hold_steps=args.success_hold_steps,
         stop_on_success=args.stop_on_success, ignore_env_done=args.ignore_env_done,
         keep_failures=args.keep_failures, device=args.device, render=args.render, format=args.format,
-        reward_type=args.reward_type, cameras=cameras, image_size=args.image_size, verbose=args.verbose)
+        reward_type=args.reward_type, cameras=cameras, image_size=args.image_size,
+        image_quality=args.image_quality, verbose=args.verbose)
 
 
 def wants_window(config: CollectConfig) -> bool:

@@ -13,7 +13,7 @@ from typing import Any, cast
 
 from fetch.dataset.formats import check_format
 from fetch.errors import FetchError, UnknownNameError
-from fetch.rendering import check_camera_list, check_image_size
+from fetch.rendering import DEFAULT_IMAGE_QUALITY, check_camera_list, check_image_quality, check_image_size
 from fetch.tasks import ENV_IDS, MAX_STEPS, registered_horizon
 from fetch.teleop.registry import device_kind
 
@@ -55,6 +55,8 @@ class CollectConfig:
     reward_type: str = "sparse"
     cameras: tuple[str, ...] = ()
     image_size: int = 84
+    image_quality: str = DEFAULT_IMAGE_QUALITY
+    """how `cameras`' images are drawn (`rendering.IMAGE_QUALITIES`)."""
     verbose: bool = False
 
     def __post_init__(self) -> None:
@@ -76,6 +78,7 @@ class CollectConfig:
         if max_steps > MAX_STEPS:
             raise FetchError(f"--max-steps must be at most {MAX_STEPS} (over an hour at 25 Hz), got {max_steps}")
         check_image_size(self.image_size, "--image-size")
+        check_image_quality(self.image_quality, "--image-quality")
         check_camera_list(self.cameras)
         if not 0 <= self.seed <= MAX_SEED:
             raise FetchError(f"--seed must be a whole number from 0 to 2**62 (every demo stores its reset seed as a "

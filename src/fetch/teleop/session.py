@@ -138,7 +138,7 @@ class Session:
         """demos the writer reported on disk (listed in an index that is on disk): what the summary says"""
         self.writer = open_writer(config.format, config.out, self.env, settings=config.settings(),
                                   device=config.device, cameras=config.cameras, image_size=config.image_size,
-                                  on_saved=self._on_saved)
+                                  image_quality=config.image_quality, on_saved=self._on_saved)
         if getattr(self.writer, "recovered", 0):
             self.log(f"recovered {self.writer.recovered} demo(s) written just before an interruption")
         # The loop records states only: the writer renders `--cameras` images from them in another

@@ -24,6 +24,7 @@ from fetch import observation as ob
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.env import FetchEnv
 from fetch.errors import FetchError, UnknownNameError
+from fetch.rendering import DEFAULT_IMAGE_QUALITY
 from fetch.robot import action_rule, checked_actions
 from fetch.tasks.base import mocap_index, reward
 from fetch.vector.worlds import StateLayout, Worlds, make_worlds
@@ -56,7 +57,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
                  height: int = 480, camera_name: str = "front", hide_goal: bool = False,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, nthread: int = 0,
                  render_worlds: Sequence[int] | None = None, cameras: Sequence[str] = (),
-                 image_size: int = DEFAULT_IMAGE_SIZE) -> None:
+                 image_size: int = DEFAULT_IMAGE_SIZE, image_quality: str = DEFAULT_IMAGE_QUALITY) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise FetchError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
         self.num_envs = int(num_envs)
@@ -74,7 +75,8 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
 
         # The template: validates the env's own arguments, resets one world at a time and renders.
         self._env = FetchEnv(task=task, reward_type=reward_type, render_mode=render_mode, width=width, height=height,
-                             camera_name=camera_name, hide_goal=hide_goal, cameras=cameras, image_size=image_size)
+                             camera_name=camera_name, hide_goal=hide_goal, cameras=cameras, image_size=image_size,
+                             image_quality=image_quality)
         env = self._env
         self.task, self.robot, self.model = env.task, env.robot, env.model
         self.reward_type = reward_type
@@ -391,10 +393,8 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
     def _check_worlds(self, worlds: Sequence[int] | None) -> list[int]:
         if worlds is None:
             return list(range(self.num_envs))
-        out = []
+        worlds = list(worlds)
         for w in worlds:
             if isinstance(w, bool) or not isinstance(w, (int, np.integer)) or not 0 <= w < self.num_envs:
                 raise FetchError(f"world {w!r} is not one of 0..{self.num_envs - 1}")
-            out.append(int(w))
-        return out
-
+        return [int(w) for w in worlds]
