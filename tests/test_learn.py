@@ -520,7 +520,7 @@ def test_the_python_api_trains_what_the_command_trains(torch, reach: pathlib.Pat
     result = train(reach, tmp_path / "api", TrainRequest(steps=20), show_progress=False, log=lambda _: None)
     cli, api = _checkpoint(torch, tmp_path / "cli"), _checkpoint(torch, tmp_path / "api")
     assert cli["policy"] == api["policy"] == {**result.plan.policy.as_dict(), "obs_size": api["policy"]["obs_size"],
-                                              "image_size": 0}
+                                              "image_size": 0, "image_quality": ""}
     assert cli["train"] == api["train"]
     assert all(torch.equal(cli["model"][k], api["model"][k]) for k in cli["model"])
 

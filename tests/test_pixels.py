@@ -228,11 +228,28 @@ def test_a_pixel_run_takes_its_kinds_training_defaults_unless_told(seen: pathlib
         assert chosen.policy.kind == "cnn-chunk" and chosen.policy.cameras == ("front", "wrist")
         assert (chosen.config.steps, chosen.config.batch_size) == (own["steps"], own["batch_size"])
         assert chosen.config.threads == cores() and not chosen.config.mirror
-    told = plan(TrainRequest(inputs="pixels", steps=7, batch_size=5, threads=1, cameras=("wrist",)), demos)
-    assert (told.config.steps, told.config.batch_size, told.config.threads) == (7, 5, 1)
+        assert chosen.config.precision == "auto"  # decided by train, which knows the device
+    told = plan(TrainRequest(inputs="pixels", steps=7, batch_size=5, threads=1, cameras=("wrist",), precision="fp32"),
+                demos)
+    assert (told.config.steps, told.config.batch_size, told.config.threads, told.config.precision) == (7, 5, 1, "fp32")
     assert told.policy.cameras == ("wrist",)
     state = plan(TrainRequest(policy="mlp-chunk"), demos)
     assert (state.config.batch_size, state.config.threads, state.policy.cameras) == (256, 1, ())
+    assert state.config.precision == "fp32"
+
+
+def test_auto_precision_is_bf16_where_the_cpu_computes_it_natively(torch, run: pathlib.Path,  # noqa: ANN001
+                                                                   seen: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """The run records what auto became; --precision fp32 trains in fp32; a bad one is a one-line error."""
+    from fetch.learn.settings import TrainConfig
+    from fetch.learn.train import CPU, native_bf16
+
+    trained = torch.load(run / "checkpoint.pt", weights_only=True)["train"]
+    assert trained["precision"] == ("bf16" if native_bf16(CPU) else "fp32")
+    assert _train(seen, tmp_path / "fp32", "--inputs", "pixels", "--steps", "3", "--precision", "fp32") == 0
+    assert torch.load(tmp_path / "fp32" / "checkpoint.pt", weights_only=True)["train"]["precision"] == "fp32"
+    with pytest.raises(FetchError, match=r"^--precision 'fp16': choose one of auto, fp32, bf16$"):
+        TrainConfig(precision="fp16")
 
 
 def test_asking_for_cuda_where_there_is_none_is_one_line(torch, seen: pathlib.Path, tmp_path, capsys) -> None:  # noqa: ANN001

@@ -13,7 +13,7 @@ from fetch._progress import said_if_slow
 from fetch.errors import FetchError
 from fetch.learn import TORCH_INSTALL, require_torch
 from fetch.learn.kinds import INPUTS, KINDS, POLICY_KINDS
-from fetch.learn.settings import ACCELERATORS, AUTO, CORRECTION_WEIGHT, TrainRequest, sees_pixels
+from fetch.learn.settings import ACCELERATORS, AUTO, CORRECTION_WEIGHT, PRECISIONS, TrainRequest, sees_pixels
 from fetch.tasks import REGISTRATIONS, Training, mirroring_ids
 
 
@@ -102,6 +102,10 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--accelerator", default="auto", choices=ACCELERATORS,
                    help="where to train: auto (default) is CUDA where torch sees a GPU, else the CPU; running a "
                         "policy stays on the CPU (docs/training.md)")
+    p.add_argument("--precision", default=None, choices=PRECISIONS,
+                   help="fp32, or bf16 (mixed precision: matrix products and convolutions in bfloat16, weights in "
+                        "fp32); auto is bf16 where the CPU or GPU computes it natively (default fp32; --inputs "
+                        "pixels auto)")
     p.add_argument("--threads", type=int, default=None,
                    help="torch threads, 0 for one per core (default 1; --inputs pixels 0; results are reproducible "
                         "for a given count)")

@@ -50,7 +50,7 @@ KINDS: tuple[PolicyKind, ...] = (
                "chunks of actions as mlp-chunk", own=("chunk", "ensemble_decay", "cameras"), defaults={},
                implementation="fetch.learn.pixels:PIXEL_CHUNK", inputs="pixels",
                # convolutions over images: a quarter of the batch, and every core (docs/training.md)
-               training={"steps": 6000, "batch_size": 64, "threads": 0}),
+               training={"steps": 6000, "batch_size": 64, "threads": 0, "precision": "auto"}),
 )
 INPUTS = ("state", "pixels")
 """What a policy can see (`PolicyKind.inputs`; `gym-fetch train --inputs`)."""

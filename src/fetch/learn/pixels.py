@@ -46,6 +46,7 @@ class SpatialSoftArgmax(nn.Module):
         self.log_temperature = nn.Parameter(torch.zeros(()))
 
     def forward(self, maps: torch.Tensor) -> torch.Tensor:
+        maps = maps.float()  # where the points are, to the last bit a softmax over the map gives (also under bf16)
         n, c, h, w = maps.shape
         weights = torch.softmax(maps.reshape(n, c, h * w) / self.log_temperature.exp(), dim=-1)
         ys, xs = torch.meshgrid(torch.linspace(-1.0, 1.0, h, device=maps.device),
@@ -73,14 +74,12 @@ class Encoder(nn.Module):
 
 def random_shift(images: torch.Tensor, shift: int) -> torch.Tensor:
     """(N, C, H, W) images, each moved by its own whole-pixel offset in [-shift, shift]^2 (drawn from torch's
-    generator), the edge pixels repeated into what is uncovered."""
+    CPU generator, on any device), the edge pixels repeated into what is uncovered. One slice per image (a
+    gather over every pixel took longer)."""
     n, c, h, w = images.shape
     padded = F.pad(images, (shift, shift, shift, shift), mode="replicate")
-    dy, dx = torch.randint(0, 2 * shift + 1, (2, n, 1)).to(images.device)  # the CPU generator on any device
-    rows = (torch.arange(h, device=images.device)[None] + dy)[:, None, :, None]
-    cols = (torch.arange(w, device=images.device)[None] + dx)[:, None, None, :]
-    return padded[torch.arange(n, device=images.device)[:, None, None, None],
-                  torch.arange(c, device=images.device)[None, :, None, None], rows, cols]
+    dy, dx = torch.randint(0, 2 * shift + 1, (2, n)).tolist()
+    return torch.stack([padded[i, :, y:y + h, x:x + w] for i, (y, x) in enumerate(zip(dy, dx, strict=True))])
 
 
 class PixelChunk(nn.Module):
@@ -127,6 +126,7 @@ def pixel_loss(config: PolicyConfig, model: nn.Module, batch: Batch) -> torch.Te
     total = torch.zeros(())
     for net in nets:
         actions, guess = cast(PixelChunk, net).forward_both(batch.x, *batch.images)
+        actions, guess = actions.float(), guess.float()  # the loss in fp32 when training in bf16
         total = total + masked_loss(one, actions, batch.y, batch.m)
         if batch.unseen is not None and UNSEEN_WEIGHT:
             total = total + UNSEEN_WEIGHT * ((guess - batch.unseen) ** 2).mean()

@@ -21,6 +21,10 @@ from fetch.tasks import Training, registration
 
 AUTO = "auto"
 ACCELERATORS = ("auto", "cpu", "cuda")
+PRECISIONS = ("auto", "fp32", "bf16")
+"""How a training step computes: fp32, or bf16 (the network's matrix products and convolutions in bfloat16
+under torch.autocast, the weights and the loss in fp32); auto is bf16 where the device computes it natively
+(a CPU with AVX512-BF16 or AMX, a CUDA device that supports it), else fp32."""
 FROM_STEPS_DIVISOR = 4
 """`train --from RUN` goes on for a quarter of RUN's steps unless told otherwise."""
 CORRECTION_WEIGHT = 4
@@ -48,8 +52,12 @@ class TrainConfig:
     """[steps] between checkpoints (and validation losses); one is also written at the end."""
     threads: int = 1
     """torch's intra-op threads: results are reproducible for a given count."""
+    precision: str = "fp32"
+    """`PRECISIONS`; `train` decides "auto" for its device before the run starts (the checkpoint keeps which)."""
 
     def __post_init__(self) -> None:
+        if self.precision not in PRECISIONS:
+            raise FetchError(f"--precision {self.precision!r}: choose one of {', '.join(PRECISIONS)}")
         for name in ("steps", "batch_size", "checkpoint_every", "threads"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
@@ -102,6 +110,8 @@ class TrainRequest:
     checkpoint_every: int = TrainConfig.checkpoint_every
     threads: int | None = None
     """None: the kind's (`PolicyKind.training`; 0 there is one per core), else `TrainConfig`'s."""
+    precision: str | None = None
+    """`PRECISIONS`; None: the kind's (`PolicyKind.training`), else `TrainConfig`'s."""
     start_from: str | os.PathLike[str] | None = None
     """a run whose policy this one goes on training (`--from`): its settings, weights and normalisation."""
     accelerator: str = "auto"
@@ -174,6 +184,7 @@ def plan(request: TrainRequest, demos: Demos, base: dict[str, Any] | None = None
     batch_size = request.batch_size if request.batch_size is not None else own.get("batch_size",
                                                                                    TrainConfig.batch_size)
     threads = request.threads if request.threads is not None else own.get("threads", TrainConfig.threads)
+    precision = request.precision if request.precision is not None else own.get("precision", TrainConfig.precision)
     if request.epochs is not None:
         if request.epochs < 1:
             raise FetchError(f"--epochs must be a whole number >= 1, got {request.epochs}")
@@ -182,7 +193,8 @@ def plan(request: TrainRequest, demos: Demos, base: dict[str, Any] | None = None
         steps = request.epochs * max(1, count // max(1, min(batch_size, count)))
     config = TrainConfig(steps=steps, batch_size=batch_size, lr=request.lr, obs_noise=request.obs_noise,
                          seed=request.seed, demos=request.demos, mirror=mirror,
-                         checkpoint_every=request.checkpoint_every, threads=threads or cores())
+                         checkpoint_every=request.checkpoint_every, threads=threads or cores(),
+                         precision=precision)
     return TrainPlan(policy, config, request.start_from)
 
 

@@ -66,6 +66,15 @@ def accelerator(asked: str = "auto") -> torch.device:
     return torch.device("cuda")
 
 
+def native_bf16(device: torch.device) -> bool:
+    """Whether `device` computes bfloat16 natively (else autocast's bf16 is emulated, and slower)."""
+    if device.type == "cuda":
+        return bool(torch.cuda.is_bf16_supported())
+    cpu: Any = getattr(torch, "cpu", None)
+    return any(bool(getattr(cpu, probe, lambda: False)()) for probe in ("_is_avx512_bf16_supported",
+                                                                         "_is_amx_tile_supported"))
+
+
 def validation_loss(policy: PolicyConfig, model: torch.nn.Module, valid: Samples | None,
                     device: torch.device = CPU) -> float | None:
     """The behaviour-cloning loss on the validation demos (whatever else the kind's loss adds)."""
@@ -127,6 +136,10 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
                                  image_size=demos.image_size if pixels else 0,
                                  image_quality=demos.image_quality if pixels else "")
     device = accelerator(request.accelerator if isinstance(request, TrainRequest) else "auto")
+    if chosen.config.precision == "auto":
+        chosen = dataclasses.replace(chosen, config=dataclasses.replace(
+            chosen.config, precision="bf16" if native_bf16(device) else "fp32"))
+        config = chosen.config
     torch.set_num_threads(config.threads)
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(config.seed)
@@ -170,7 +183,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     members = f" x{policy_config.members}" if policy_config.members > 1 else ""
     mirrored = ", mirror images included" if config.mirror else ""
     mirrored += f", seeing {', '.join(policy_config.cameras)}" if policy_config.cameras else ""
-    where = f" on {device}" if device != CPU else ""
+    where = (f" on {device}" if device != CPU else "") + (" in bf16" if config.precision == "bf16" else "")
     say(f"training {policy_config.kind}{members} on {len(demos.train)} {demos.env_id} demos{mirrored} "
         f"({len(train_samples)} examples) for steps {start + 1}-{config.steps}, batch {config.batch_size}, "
         f"{config.threads} thread(s){where}; horizon {horizon} steps; checkpoint every {config.checkpoint_every} steps "
@@ -197,7 +210,8 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
         if config.obs_noise:  # drawn on the CPU, whose generator the checkpoint keeps, on any device
             batch = batch._replace(x=batch.x + config.obs_noise * torch.randn_like(batch.x))
         batch = batch.to(device)
-        loss = loss_of(policy_config, model, batch)
+        with torch.autocast(device.type, dtype=torch.bfloat16, enabled=config.precision == "bf16"):
+            loss = loss_of(policy_config, model, batch)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
