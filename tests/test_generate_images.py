@@ -96,9 +96,10 @@ def test_one_worker_in_this_process_makes_the_same_demos_and_resumes(source: pat
 @pytest.mark.parametrize("other", [
     ["--cameras", "front", "--image-size", str(SIZE)],
     ["--cameras", "front,wrist", "--image-size", "48"],
+    ["--cameras", "front,wrist", "--image-size", str(SIZE), "--image-quality", "full"],
     [],
 ])
-def test_a_resume_with_other_cameras_or_size_is_refused_in_one_line(
+def test_a_resume_with_other_cameras_size_or_quality_is_refused_in_one_line(
         source: pathlib.Path, pooled: pathlib.Path, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str],
         other: list[str]) -> None:
     out = tmp_path / "resumed"
@@ -106,11 +107,29 @@ def test_a_resume_with_other_cameras_or_size_is_refused_in_one_line(
     capsys.readouterr()
     assert main(gen_argv(source, out, 6, "--workers", "1", SHORT, *other)) == 2
     err = capsys.readouterr().err.strip()
-    asked = f"--cameras {other[1]} --image-size {other[3]}" if other else "no --cameras"
+    quality = other[5] if len(other) > 4 else "fast"
+    asked = f"--cameras {other[1]} --image-size {other[3]} --image-quality {quality}" if other else "no --cameras"
     assert len(err.splitlines()) == 1, err
-    assert f"--cameras front,wrist --image-size {SIZE}" in err and asked in err, err
+    assert f"--cameras front,wrist --image-size {SIZE} --image-quality fast" in err and asked in err, err
     with open_dataset(out) as ds:
         assert len(ds.demo_names) == 4
+
+
+def test_render_obs_keeps_a_dataset_s_one_image_quality(pooled: pathlib.Path, tmp_path: pathlib.Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """A camera added to a dataset with images is drawn at their quality; asking for another is one line."""
+    copy = tmp_path / "copy"
+    shutil.copytree(pooled, copy)
+    capsys.readouterr()
+    side = ["render-obs", str(copy), "--camera", "side", "--size", str(SIZE), "--workers", "1"]
+    assert main([*side, "--quality", "full"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "a dataset has one image quality, so use --quality fast" in err, err
+    assert main(side) == 0
+    with open_dataset(copy) as ds, StateRenderer(ds.env_id, ds.env_kwargs, SIZE, SIZE, "fast") as renderer:
+        assert ds.layout.cameras == (*CAMERAS, "side") and ds.layout.image_quality == "fast"
+        arrays = ds.arrays(ds.demo_names[0])
+        assert np.array_equal(arrays["obs/side_image"], renderer.frames(arrays["states"], "side")[:-1])
 
 
 @pytest.mark.parametrize(("more", "message"), [
