@@ -11,9 +11,11 @@ context is made; llvmpipe's threads, started later, inherit the pin. Per task, o
 - raw: MuJoCo's calls and nothing else: `mjv_updateScene`, `mjr_render`, then `mjr_readPixels` (render
   + read), or `mjr_finish` (render: glFinish, so the frame is drawn, not only queued);
 - `mujoco.Renderer`: `update_scene(data, camera=name)` and `render()`, as its users write it;
-- ours: `camera_obs.CameraImages.render`, the call that puts every camera's image in an observation;
-- the env: `env.step` of `gym.make(task, cameras=..., image_size=...)` and of `gym.make(task)`, resets
-  not timed.
+- ours: `camera_obs.CameraImages.render`, the call that puts every camera's image in an observation, at
+  image quality "full" (the raw loop's picture: the same pixels) and at "fast" (`rendering.IMAGE_QUALITIES`:
+  no multisampling, no reflection; the default for observations and datasets);
+- the env: `env.step` of `gym.make(task, cameras=..., image_size=...)` (fast) and of `gym.make(task)`,
+  resets not timed.
 
 A second table switches one thing off at a time in the raw render + read loop (shadows, reflections,
 skybox: scene flags; 4x multisampling: a second context made with `offsamples` 0), then all four: where a
@@ -51,6 +53,7 @@ WHERE = {
     "no reflections": ((FLAG.mjRND_REFLECTION,), True),
     "no skybox": ((FLAG.mjRND_SKYBOX,), True),
     "no MSAA": ((), False),
+    "no reflections, no MSAA (fast)": ((FLAG.mjRND_REFLECTION,), False),
     "none of these": ((FLAG.mjRND_SHADOW, FLAG.mjRND_REFLECTION, FLAG.mjRND_SKYBOX), False),
 }
 """The second table's columns: name -> (the raw loop's scene flags switched off, multisampling on)."""
@@ -58,11 +61,12 @@ WHERE = {
 
 class Result(NamedTuple):
     """One task's medians: `rates` by subject [images/s or steps/s], `ours_over_raw` (ours / raw render +
-    read), `render_share` (the cameras' share of a step's time), `same_pixels` (raw, mujoco.Renderer and
+    read), `fast_over_full` (ours at image quality fast / at full), `render_share` (the cameras' share of a step's time), `same_pixels` (raw, mujoco.Renderer and
     ours drew the same images), `gl` (the GL renderer's name)."""
 
     rates: dict[str, float]
     ours_over_raw: float
+    fast_over_full: float
     render_share: float
     same_pixels: bool
     gl: str
@@ -207,7 +211,8 @@ def measure(task: str, cameras: tuple[str, ...], size: int, seconds: float, roun
     contexts = {True: mjr_context(model), False: mjr_context(model, multisample=False)}
     raw = Raw(model, data, contexts[True], cameras, size)
     renderer = make_renderer(model, size, size)  # mujoco.Renderer on the GL backend ours uses
-    ours = CameraImages(model, cameras, size, hide_goal=False)
+    ours = CameraImages(model, cameras, size, hide_goal=False, quality="full")
+    fast = CameraImages(model, cameras, size, hide_goal=False, quality="fast")
     with_cameras = Stepper(gym.make(task, cameras=cameras, image_size=size))
     without = Stepper(gym.make(task))
     same = same_pixels(raw, renderer, ours, gl)
@@ -231,6 +236,7 @@ def measure(task: str, cameras: tuple[str, ...], size: int, seconds: float, roun
         "raw render+read": Subject(raw.frame, entering(raw)),
         "mujoco.Renderer": Subject(by_renderer),
         "ours": Subject(lambda: len(ours.render(data))),
+        "ours, fast": Subject(lambda: len(fast.render(data))),
         "env step, cameras": Subject(with_cameras.unit, between=with_cameras.between),
         "env step": Subject(without.unit, between=without.between),
     }
@@ -245,6 +251,7 @@ def measure(task: str, cameras: tuple[str, ...], size: int, seconds: float, roun
                 rates[name].append(rate)
 
     ours.close()
+    fast.close()
     renderer.close()
     gl.make_current()
     for context in contexts.values():
@@ -255,6 +262,8 @@ def measure(task: str, cameras: tuple[str, ...], size: int, seconds: float, roun
     return Result(rates={name: statistics.median(values) for name, values in rates.items()},
                   ours_over_raw=statistics.median(o / w for o, w in zip(rates["ours"], rates["raw render+read"],
                                                                         strict=True)),
+                  fast_over_full=statistics.median(f / o for f, o in zip(rates["ours, fast"], rates["ours"],
+                                                                         strict=True)),
                   render_share=statistics.median(1 - c / p for c, p in zip(rates["env step, cameras"],
                                                                            rates["env step"], strict=True)),
                   same_pixels=same, gl=gl_renderer)
@@ -316,12 +325,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     size = f"{args.size} x {args.size}"
     print(f"\n{', '.join(cameras)} at {size}: images/s (fps) on one core, env steps/s")
     print("| task | raw mjr_render fps | raw render+read fps | mujoco.Renderer fps | ours fps | ours/raw "
-          "| env steps/s, cameras | env steps/s, none | cameras' share of a step | same pixels |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+          "| ours fast fps | fast/full | env steps/s, cameras (fast) | env steps/s, none | cameras' share of a step "
+          "| same pixels |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     for task, r in results.items():
         rate = r.rates
         print(f"| {task} | {rate['raw render']:,.0f} | {rate['raw render+read']:,.0f} "
               f"| {rate['mujoco.Renderer']:,.0f} | {rate['ours']:,.0f} | {r.ours_over_raw:.2f} "
+              f"| {rate['ours, fast']:,.0f} | {r.fast_over_full:.1f} "
               f"| {rate['env step, cameras']:,.1f} | {rate['env step']:,.0f} | {r.render_share:.0%} "
               f"| {'yes' if r.same_pixels else 'NO'} |")
     print(f"\nWhere a raw frame's time goes: raw render+read fps at {size}, one thing off")
