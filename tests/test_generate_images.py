@@ -52,8 +52,8 @@ def pooled(source: pathlib.Path, tmp_path_factory: pytest.TempPathFactory) -> pa
     return out
 
 
-def test_every_demo_holds_the_images_render_obs_makes_of_its_states(pooled: pathlib.Path,
-                                                                    tmp_path: pathlib.Path) -> None:
+def test_every_demo_holds_the_images_render_obs_makes_of_its_states(pooled: pathlib.Path, tmp_path: pathlib.Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
     with open_dataset(pooled) as ds:
         require_valid(ds)
         assert ds.layout.cameras == CAMERAS and ds.layout.image_size == SIZE
@@ -71,6 +71,7 @@ def test_every_demo_holds_the_images_render_obs_makes_of_its_states(pooled: path
                         assert np.array_equal(images, expected), (name, prefix, camera)
                 assert arrays["obs/front_image"].std() > 0  # not a blank frame
     assert main(["info", str(pooled)]) == 0
+    assert f"cameras     front, wrist ({SIZE} px, fast quality)" in capsys.readouterr().out
     # render-obs itself, rendering the wrist camera again into a copy, writes the same arrays
     copy = tmp_path / "copy"
     shutil.copytree(pooled, copy)

@@ -77,7 +77,8 @@ class Hdf5Recording:
                  f"  actions     in [{s.action_range[0]:.3f}, {s.action_range[1]:.3f}]",
                  "  devices     " + (", ".join(f"{k} {v}" for k, v in sorted(s.devices.items())) or "-"),
                  f"  control     {s.achieved_hz:.1f} Hz achieved (mean over demos; 0: unpaced)",
-                 f"  cameras     {', '.join(s.cameras) or 'none'}"]
+                 f"  cameras     {', '.join(s.cameras) or 'none'}"
+                 + (f" ({ds.layout.image_size} px, {ds.layout.image_quality} quality)" if s.cameras else "")]
         demos, taken, person, steps = s.corrections
         if demos:
             lines.append(f"  takeovers   {demos} demos recorded with a person ready to take over: {taken} takeovers, "
