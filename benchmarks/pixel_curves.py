@@ -101,8 +101,8 @@ def table(results: pathlib.Path) -> str:
     lines = [HEADING, "",
              "Written by `benchmarks/pixel_curves.py` (see its docstring). The demos: `benchmarks.mission --inputs "
              "pixels`' stand-in, 10 pad demos, `gym-fetch generate` to 1000 with front and wrist images at 84 x 84 "
-             "(900 in mask/train); each run is `gym-fetch train` with its defaults on the first N of them (pixels: "
-             "`--inputs pixels`, the `cnn-chunk` policy; state: the task's `auto` policy), then "
+             "drawn fast (900 in mask/train); each run is `gym-fetch train` with its defaults on the first N of "
+             "them (pixels: `--inputs pixels`, the `cnn-chunk` policy; state: the task's `auto` policy), then "
              f"{EPISODES} evaluation episodes on unseen seeds. Success %, mean ± std over the training seeds done "
              "(their count in brackets); the last column is the mean training wall time of a run on 2 cores.", "",
              "| task | sees | " + " | ".join(f"{counts.get(n, n or 'all')} demos" for n in DEMOS)

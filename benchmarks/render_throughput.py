@@ -60,9 +60,9 @@ WHERE = {
 
 
 class Result(NamedTuple):
-    """One task's medians: `rates` by subject [images/s or steps/s], `ours_over_raw` (ours / raw render +
-    read), `fast_over_full` (ours at image quality fast / at full), `render_share` (the cameras' share of a step's time), `same_pixels` (raw, mujoco.Renderer and
-    ours drew the same images), `gl` (the GL renderer's name)."""
+    """One task's medians: `rates` by subject [images/s or steps/s], `ours_over_raw` (ours / raw render + read),
+    `fast_over_full` (ours at image quality fast / at full), `render_share` (the cameras' share of a step's
+    time), `same_pixels` (raw, mujoco.Renderer and ours drew the same images), `gl` (the GL renderer's name)."""
 
     rates: dict[str, float]
     ours_over_raw: float
