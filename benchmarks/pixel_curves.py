@@ -14,7 +14,8 @@ run it rewrites its section of docs/learning_curves.md (`HEADING`; the rest of t
 `benchmarks.learning_curves`', which keeps this section when it rewrites the page).
 
 A run is one `gym-fetch train` with that many demos: the pixel policy takes its 6000 steps whatever the
-number of demos (about 13 minutes on 2 cores), the state policy the task's steps (2-4 minutes).
+number of demos (about 9 minutes on 2 cores with bf16), the state policy the task's steps (2-4 minutes):
+about 2 hours a task for the 18 runs.
 """
 
 from __future__ import annotations
