@@ -330,7 +330,7 @@ def test_an_image_export_says_how_to_get_the_images_the_recovered_env_does_not_g
     export_minari(camera_dataset, "fetch/reach/cams-v0")
     loaded = minari.load_dataset("fetch/reach/cams-v0")
     description = loaded.storage.metadata["description"]
-    recipe = "recover_environment(render_mode='rgb_array', width=32, height=32, camera_name='front')"
+    recipe = "recover_environment(cameras=('front',), image_size=32, image_quality='fast')"
     assert "state observations only" in description and "front_image" in description and recipe in description
     episode, seed = loaded[0], next(loaded.storage.get_episode_metadata([0]))["seed"]
     for eval_env in (False, True):  # both give the state keys, without a crash
@@ -338,12 +338,10 @@ def test_an_image_export_says_how_to_get_the_images_the_recovered_env_does_not_g
         obs, _ = env.reset(seed=seed)
         assert set(obs) == set(loaded.observation_space.keys()) - {"front_image"}
         env.close()
-    env = loaded.recover_environment(render_mode="rgb_array", width=32, height=32, camera_name="front")
-    env.reset(seed=seed)
-    frames = [env.render()]
+    env = loaded.recover_environment(cameras=("front",), image_size=32, image_quality="fast")
+    frames = [env.reset(seed=seed)[0]["front_image"]]
     for action in episode.actions:
-        env.step(action)
-        frames.append(env.render())
+        frames.append(env.step(action)[0]["front_image"])
     env.close()
     np.testing.assert_array_equal(np.stack(frames), episode.observations["front_image"])  # the recipe's images
     export_minari(camera_dataset, "fetch/reach/cams-v0", description="Mine.", force=True)

@@ -96,7 +96,7 @@ def test_render_obs_stops_on_a_group_ctrl_c_and_leaves_a_valid_dataset(pick_demo
     data = tmp_path / "pick"
     shutil.copytree(pick_demos, data)
     code, _, stderr, left = _stop_group(
-        _cli("render-obs", str(data), "--camera", "front", "--size", "128", "--workers", "2"),
+        _cli("render-obs", str(data), "--camera", "front", "--size", "128", "--quality", "full", "--workers", "2"),
         ready=None, delay=3.0, twice=twice)  # ~12 s of rendering at 128 px: stopped mid-way
     assert code in STOPPED, (code, stderr[-800:])
     assert "Traceback" not in stderr, stderr[-1500:]

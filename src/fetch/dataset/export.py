@@ -276,13 +276,11 @@ def _observation_space(space: Any, layout: schema.Layout) -> Any:
 
 def _images_note(layout: schema.Layout) -> str:
     """The description's sentence on the recorded images, which a recovered env does not observe."""
-    size = layout.image_size
     keys = ", ".join(schema.image_key(c) for c in layout.cameras)
-    # The env renders with the renderer and settings the collector used: the images are the same.
-    recipes = "; ".join(f"recover_environment(render_mode='rgb_array', width={size}, height={size}, "
-                        f"camera_name='{c}') gives {schema.image_key(c)} as env.render() after reset and each step"
-                        for c in layout.cameras)
-    return f"The recovered env gives state observations only, not {keys}: {recipes}."
+    # The env's camera observations use the renderer, size and quality the dataset's images were made with.
+    recipe = (f"recover_environment(cameras={tuple(layout.cameras)!r}, image_size={layout.image_size}, "
+              f"image_quality='{layout.image_quality}') observes them too, the same images after reset and each step")
+    return f"The recovered env gives state observations only, not {keys}: {recipe}."
 
 
 def _episode(arrays: dict[str, np.ndarray], attrs: dict[str, Any], env: Any, corrected: bool = False
