@@ -20,6 +20,7 @@ from fetch.dataset.habits import SQUEEZE
 from fetch.errors import FetchError, UnknownNameError
 from fetch.experts.base import Expert
 from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
+from fetch.rendering import DEFAULT_IMAGE_QUALITY
 from fetch.robot import ACTION_STEP
 from fetch.tasks import MAX_STEPS
 from fetch.tasks.subtasks import Frame, Scene
@@ -129,7 +130,7 @@ class Generator:
 
     def __init__(self, env_id: str, env_kwargs: dict[str, Any], sources: Sequence[Sequence[Segment]],
                  options: Options, seed: int, cameras: tuple[str, ...] = (), image_size: int = 0,
-                 image_quality: str = "fast") -> None:
+                 image_quality: str = DEFAULT_IMAGE_QUALITY) -> None:
         if options.max_steps is None:
             raise FetchError("Options.max_steps must be set before attempts are made (generate sets it)")
         self.max_steps: int = options.max_steps

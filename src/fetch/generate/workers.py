@@ -24,6 +24,7 @@ from fetch._processes import start_worker, stop_pool, workers_deaf_to_ctrl_c
 from fetch.errors import FetchError, install_hint
 from fetch.generate.attempt import Generator, Options, Result
 from fetch.generate.sources import Sources
+from fetch.rendering import DEFAULT_IMAGE_QUALITY
 
 CHUNK = 4
 """Attempts per task sent to a worker."""
@@ -45,7 +46,7 @@ class Work:
     """whose images each successful attempt renders, in the worker (checked by `generate`)."""
     image_size: int = 0
     """[px] their width and height."""
-    image_quality: str = "fast"
+    image_quality: str = DEFAULT_IMAGE_QUALITY
     """how they are drawn (`rendering.IMAGE_QUALITIES`)."""
 
     def generator(self) -> Generator:
