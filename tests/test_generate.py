@@ -27,6 +27,7 @@ from fetch.experts import make_expert
 from fetch.generate import run
 from fetch.generate.attempt import CLEARANCE, FINGER_WIDTH, FINGERTIPS, Generator, Options, Result, pass_over
 from fetch.generate.segments import Segment, annotate, from_frame, to_frame
+from fetch.generate.sources import load_sources
 from fetch.generate.workers import RESTARTS, Work
 from fetch.tasks import task_class
 from fetch.tasks.subtasks import Frame
@@ -214,8 +215,13 @@ def test_provenance_names_real_source_segments(source: pathlib.Path, serial: pat
         for name in ds.demo_names:
             attrs = ds.attrs(name)
             demos, segments = json.loads(attrs["source_demos"]), json.loads(attrs["source_segments"])
-            assert len(demos) == len(segments) == 3
-            for k, (demo, segment) in enumerate(zip(demos, segments, strict=True)):
+            made = json.loads(attrs["source_subtasks"])
+            assert len(demos) == len(segments) == len(made) >= 3 and made[0] == 0 and made[-1] == 2
+            assert all(b == a + 1 or b <= a for a, b in zip(made, made[1:], strict=False))  # on, or made again
+            assert sum(b <= a for a, b in zip(made, made[1:], strict=False)) <= 1  # --retries' default
+            starts = json.loads(attrs["segment_starts"])
+            assert len(starts) == len(made) and starts[0] == 0 and starts == sorted(starts) and starts[-1] < 50
+            for k, demo, segment in zip(made, demos, segments, strict=True):
                 assert tuple(segment) == bounds[demo][k]
             assert attrs["device"] == "generate" and attrs["seed"] == 100 + attrs["attempt"]
             assert attrs["generation_attempts"] == attrs["attempt"] - previous >= 1
@@ -404,6 +410,38 @@ def test_resume_with_other_settings_is_refused(source: pathlib.Path, serial: pat
     assert main(gen_argv(source, out, 2, "--workers", "1")) == 0
     assert main(gen_argv(source, out, 4, "--workers", "1", "--noise", "0.05")) == 2
     assert "recorded differently" in capsys.readouterr().err
+
+
+def test_a_missed_grasp_is_made_again_from_where_the_hand_is(source: pathlib.Path) -> None:
+    """With noise that makes grasps miss, --retries makes the grasp again: the attempt is the same as without
+    retries up to the first retry, which begins where the object is not held, and some attempts that fail
+    without retries succeed with them."""
+    sources = load_sources(source)
+    plain, again = (Generator(sources.env_id, sources.env_kwargs, sources.segments,
+                              Options(max_steps=50, noise=0.3, retries=retries), 100) for retries in (0, 2))
+    recovered = retried = 0
+    try:
+        for number in range(100):
+            r0, r1 = plain.attempt(number), again.attempt(number)
+            assert [c[3] for c in r0.choices] == list(range(len(r0.choices)))
+            made = [c[3] for c in r1.choices]
+            back = [i for i in range(1, len(made)) if made[i] <= made[i - 1]]
+            assert len(back) <= 2 and all(made[i] == 0 for i in back)  # only the grasp is made again
+            if not back:
+                assert r1.choices == r0.choices and r1.success == r0.success and r1.steps == r0.steps
+                continue
+            retried += 1
+            assert r1.choices[:back[0]] == r0.choices[:back[0]]
+            recovered += r1.success and not r0.success
+            if r1.demo is not None:  # each retry began with the object out of the fingers
+                states = r1.demo.arrays["states"]
+                for i in back:
+                    again.base.set_state(states[r1.starts[i]])
+                    assert again.scene.touching(again.base.data, "object0") != (True, True)
+    finally:
+        plain.close()
+        again.close()
+    assert retried >= 3 and recovered >= 1, (retried, recovered)
 
 
 def test_a_drawer_task_generates_too(tmp_path: pathlib.Path) -> None:

@@ -23,7 +23,7 @@ from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to
 from fetch.rendering import DEFAULT_IMAGE_QUALITY
 from fetch.robot import ACTION_STEP
 from fetch.tasks import MAX_STEPS
-from fetch.tasks.subtasks import Frame, Scene
+from fetch.tasks.subtasks import Frame, Grasped, Lifted, Scene
 
 SELECTIONS = ("nearest", "random")
 """How a source segment is chosen for each subtask: among the `nearest_k` whose hand started
@@ -54,6 +54,11 @@ class Options:
     (PickPlace-v2, docs/generate.md)."""
     transit_speed: float = 0.8
     """the blend-in moves the hand at most this fraction of full speed on top of the segment's motion."""
+    retries: int = 1
+    """how many times an attempt may make a missed or lost grasp again (the fingers closed beside the
+    block or on its top edge, the block slipped: not held at the end of the segment after the grasp),
+    from where the hand is, with a newly chosen grasp segment. The kept demo then shows a
+    recovery (open, come back, grasp), which a policy otherwise never sees (docs/generate.md)."""
     blend_fraction: float = 0.75
     """the offset is blended out over this fraction of the steps before the segment's closest
     approach to its reference (so the grasp or placement itself is replayed exactly)."""
@@ -62,7 +67,7 @@ class Options:
         if self.selection not in SELECTIONS:
             raise UnknownNameError("selection", self.selection, SELECTIONS)
         for name, value, low in (("max_steps", self.max_steps, 1), ("success_hold_steps", self.success_hold_steps, 1),
-                                 ("nearest_k", self.nearest_k, 1)):
+                                 ("nearest_k", self.nearest_k, 1), ("retries", self.retries, 0)):
             if value is not None and value < low:
                 raise FetchError(f"--{name.replace('_', '-')} must be at least {low}, got {value}")
         if self.max_steps is not None and self.max_steps > MAX_STEPS:
@@ -80,8 +85,11 @@ class Result(NamedTuple):
     seed: int
     success: bool
     steps: int
-    choices: tuple[tuple[str, int, int], ...]
-    """per subtask executed: (source demo, first step, end step)."""
+    choices: tuple[tuple[str, int, int, int], ...]
+    """per segment executed, in order: (source demo, first step, end step, subtask index); a subtask made
+    again (`Options.retries`) appears again."""
+    starts: tuple[int, ...]
+    """per segment executed, the attempt's step at which it began (`states[start]` is the state it began from)."""
     demo: Demo | None
     images: dict[str, np.ndarray]
     """per camera asked for, the (T + 1, size, size, 3) uint8 images of the demo's `states` (rendered
@@ -206,7 +214,9 @@ class Generator:
         return path, grips, openings
 
     def attempt(self, number: int) -> Result:
-        """Attempt `number`: reset with seed + number, execute one segment per subtask."""
+        """Attempt `number`: reset with seed + number, execute one segment per subtask. Where a grasp was
+        missed or lost (`lost`: the object not held on the last two steps of a later segment but the last),
+        the attempt makes the grasp again from where the hand is, up to `Options.retries` times."""
         o, env, base, buf = self.options, self.env, self.base, self.buffer
         seed = self.seed + number
         rng = rng_for(self.seed, number)
@@ -215,23 +225,36 @@ class Generator:
         buf.begin(obs, base.get_state())
         started = time.time()
         held_for, steps, grip, opening = 0, 0, 0.0, None
-        choices: list[tuple[str, int, int]] = []
+        choices: list[tuple[str, int, int, int]] = []
+        starts: list[int] = []
         success = False
         target = held_grip(base)
-        for k, subtask in enumerate(self.subtasks):
-            if steps >= self.max_steps or (success and o.stop_on_success):
-                break
+        k, retries = 0, 0
+        while k < len(self.subtasks) and steps < self.max_steps and not (success and o.stop_on_success):
+            subtask = self.subtasks[k]
             held = held_grip(base)
             frame = subtask.frame(self.scene, base.data)
             segment = self.choose(k, frame, held, rng)
-            choices.append((segment.demo, segment.start, segment.end))
+            choices.append((segment.demo, segment.start, segment.end, k))
+            starts.append(steps)
             path, grips, openings = self.plan(segment, frame, held, self._loose[k])
+            # Judged at the end of a segment after the grasp that is not the last (the lift): a good grasp may
+            # close only during it (the hand arrived late), and the last segment lets go by design.
+            check = len(path) if retries < o.retries and k < len(self.subtasks) - 1 else 0
+            again = None
             for i, (target, grip) in enumerate(zip(path, grips, strict=True)):
                 opening = None if openings is None else float(openings[i])
                 success, held_for = self._step(target, grip, opening, rng, held_for)
                 steps += 1
+                if check and i + 1 >= check - 1:  # not held on two steps running: a finger's contact flickers
+                    lost = self.lost(k)
+                    if lost is None or i + 1 == check:
+                        again, check = lost, 0
+                    if again is not None:
+                        break
                 if steps >= self.max_steps or (success and o.stop_on_success):
                     break
+            k, retries = (k + 1, retries) if again is None else (again, retries + 1)
         if o.stop_on_success:
             # The source's last segment ends when its success had held; give ours a few steps more.
             extra = 2 * o.success_hold_steps
@@ -251,7 +274,17 @@ class Generator:
             labels = annotate(base, self.subtasks, demo.arrays["states"], demo.arrays["actions"][:, 3]).labels
             demo.arrays["subtasks"] = labels
         images = self.render(demo.arrays["states"]) if demo is not None else {}
-        return Result(number, seed, success, steps, tuple(choices), demo, images)
+        return Result(number, seed, success, steps, tuple(choices), tuple(starts), demo, images)
+
+    def lost(self, k: int) -> int | None:
+        """While subtask `k` runs: the grasp subtask to make again if an object grasped before `k` (an earlier
+        subtask's signal is `Grasped` or `Lifted` of it) is not held now; else None."""
+        for j in range(k):
+            done = self.subtasks[j].done
+            if isinstance(done, (Grasped, Lifted)) and not Grasped(done.body)(self.scene, self.base.data):
+                return next(i for i in range(j + 1) if isinstance(self.subtasks[i].done, (Grasped, Lifted))
+                            and self.subtasks[i].done.body == done.body)  # type: ignore[union-attr]
+        return None
 
     def render(self, states: np.ndarray) -> dict[str, np.ndarray]:
         """Each camera's (N, size, size, 3) images of N saved states; a separate env's, so the attempts'

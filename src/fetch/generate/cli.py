@@ -40,6 +40,10 @@ def add_generate_parser(sub: Any) -> None:
     g.add_argument("--noise", type=float, default=0.1,
                    help="std of the noise on the executed action, action units; the clean action is recorded as "
                         "expert_actions, what training learns (DART; default %(default)s; 0: none)")
+    g.add_argument("--retries", type=int, default=1,
+                   help="times an attempt may make a subtask again whose signal does not hold at its segment's end "
+                        "(a missed grasp: open, come back, grasp again), so that demos show recoveries "
+                        "(default %(default)s; 0: never)")
     g.add_argument("--max-attempts", type=int, default=None, help="give up after this many (default 50 per demo)")
     g.add_argument("--cameras", default="",
                    help=f"record these cameras' images too, comma-separated ({', '.join(CAMERAS)}), rendered from "
@@ -59,7 +63,8 @@ def run_generate(args: argparse.Namespace) -> int:
     from fetch.generate.run import GenerateConfig, generate
 
     options = Options(max_steps=args.max_steps, success_hold_steps=args.success_hold_steps, selection=args.selection,
-                      nearest_k=args.nearest_k, noise=args.noise, stop_on_success=args.stop_on_success)
+                      nearest_k=args.nearest_k, noise=args.noise, stop_on_success=args.stop_on_success,
+                      retries=args.retries)
     cameras = tuple(c.strip() for c in args.cameras.split(",") if c.strip())  # as collect's --cameras
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
                             workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray,

@@ -105,12 +105,16 @@ class Summary:
 
 
 def settings_of(sources: Sources, options: Options, seed: int) -> dict[str, Any]:
-    """What the dataset records as made it; a resumed run must match every field."""
+    """What the dataset records as made it; a resumed run must match every field. `retries` 0 is left out,
+    so that a dataset generated before retries existed resumes with `--retries 0`."""
+    recorded = dataclasses.asdict(options)
+    if not options.retries:
+        del recorded["retries"]
     return {"max_steps": options.max_steps, "success_hold_steps": options.success_hold_steps,
             "stop_on_success": options.stop_on_success, "ignore_env_done": False,
             "generate": {"source": sources.path, "source_fingerprint": sources.fingerprint,
                          "source_demos": len(sources.segments), "subtasks": list(sources.subtasks), "seed": seed,
-                         **dataclasses.asdict(options)}}
+                         **recorded}}
 
 
 def _resume_point(out: str) -> tuple[int, int | None]:
@@ -218,6 +222,8 @@ def _commit(writer: Any, result: Result, previous: int | None) -> None:
     demo.attrs.update(
         source_demos=json.dumps([c[0] for c in result.choices]),
         source_segments=json.dumps([[c[1], c[2]] for c in result.choices]),
+        source_subtasks=json.dumps([c[3] for c in result.choices]),
+        segment_starts=json.dumps(list(result.starts)),
         generation_attempts=result.number - (-1 if previous is None else previous))
     for camera, frames in result.images.items():  # rendered in the worker: the writer renders none
         key = schema.image_key(camera)
