@@ -162,6 +162,11 @@ class Generator:
         # Only the first part approaches an object that nothing has touched yet (`pass_over`).
         self._loose = [self.scene.loose(s.reference) if k == 0 and s.done is not None else None
                        for k, s in enumerate(self.subtasks)]
+        # Per subtask whose signal holds an object (`Grasped`, `Lifted`): (its index, the object's body, the
+        # first subtask that grasps that body, which a retry makes again).
+        grasps: dict[str, int] = {}
+        self._holds = [(j, s.done.body, grasps.setdefault(s.done.body, j)) for j, s in enumerate(self.subtasks)
+                       if isinstance(s.done, (Grasped, Lifted))]
 
     def choose(self, k: int, frame: Frame, held: np.ndarray, rng: np.random.Generator) -> Segment:
         """The source segment for subtask `k`, the hand being at `held` [m] and its frame at `frame`."""
@@ -240,7 +245,7 @@ class Generator:
             path, grips, openings = self.plan(segment, frame, held, self._loose[k])
             # Judged at the end of a segment after the grasp that is not the last (the lift): a good grasp may
             # close only during it (the hand arrived late), and the last segment lets go by design.
-            check = len(path) if retries < o.retries and k < len(self.subtasks) - 1 else 0
+            check = len(path) if retries < o.retries and 0 < k < len(self.subtasks) - 1 else 0
             again = None
             for i, (target, grip) in enumerate(zip(path, grips, strict=True)):
                 opening = None if openings is None else float(openings[i])
@@ -279,11 +284,9 @@ class Generator:
     def lost(self, k: int) -> int | None:
         """While subtask `k` runs: the grasp subtask to make again if an object grasped before `k` (an earlier
         subtask's signal is `Grasped` or `Lifted` of it) is not held now; else None."""
-        for j in range(k):
-            done = self.subtasks[j].done
-            if isinstance(done, (Grasped, Lifted)) and not Grasped(done.body)(self.scene, self.base.data):
-                return next(i for i in range(j + 1) if isinstance(self.subtasks[i].done, (Grasped, Lifted))
-                            and self.subtasks[i].done.body == done.body)  # type: ignore[union-attr]
+        for j, body, grasp in self._holds:
+            if j < k and not Grasped(body)(self.scene, self.base.data):
+                return grasp
         return None
 
     def render(self, states: np.ndarray) -> dict[str, np.ndarray]:

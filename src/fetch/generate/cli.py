@@ -41,8 +41,8 @@ def add_generate_parser(sub: Any) -> None:
                    help="std of the noise on the executed action, action units; the clean action is recorded as "
                         "expert_actions, what training learns (DART; default %(default)s; 0: none)")
     g.add_argument("--retries", type=int, default=1,
-                   help="times an attempt may make a subtask again whose signal does not hold at its segment's end "
-                        "(a missed grasp: open, come back, grasp again), so that demos show recoveries "
+                   help="times an attempt may make a grasp again whose object is not held at the end of the segment "
+                        "after it (open, come back, grasp again), so that demos show recoveries "
                         "(default %(default)s; 0: never)")
     g.add_argument("--max-attempts", type=int, default=None, help="give up after this many (default 50 per demo)")
     g.add_argument("--cameras", default="",
