@@ -19,6 +19,7 @@ from fetch.dataset.frames import StateRenderer
 from fetch.dataset.habits import SQUEEZE
 from fetch.errors import FetchError, UnknownNameError
 from fetch.experts.base import Expert
+from fetch.generate.room import finger_room
 from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
 from fetch.rendering import DEFAULT_IMAGE_QUALITY
 from fetch.robot import ACTION_STEP
@@ -59,6 +60,10 @@ class Options:
     block or on its top edge, the block slipped: not held at the end of the segment after the grasp),
     from where the hand is, with a newly chosen grasp segment. The kept demo then shows a
     recovery (open, come back, grasp), which a policy otherwise never sees (docs/generate.md)."""
+    fit_opening: bool = True
+    """open the fingers, coming down on an object nothing has touched yet, no wider than puts each midway
+    between the object and whatever stands beside it (a bin's wall: `finger_room`), rather than as wide
+    as the source opened them; where nothing is near, as the source did."""
     blend_fraction: float = 0.75
     """the offset is blended out over this fraction of the steps before the segment's closest
     approach to its reference (so the grasp or placement itself is replayed exactly)."""
@@ -162,6 +167,8 @@ class Generator:
         # Only the first part approaches an object that nothing has touched yet (`pass_over`).
         self._loose = [self.scene.loose(s.reference) if k == 0 and s.done is not None else None
                        for k, s in enumerate(self.subtasks)]
+        self._loose_body = [int(base.model.site_bodyid[self.scene.site(s.reference)]) if loose else -1
+                            for s, loose in zip(self.subtasks, self._loose, strict=True)]
         # Per subtask whose signal holds an object (`Grasped`, `Lifted`): (its index, the object's body, the
         # first subtask that grasps that body, which a retry makes again).
         grasps: dict[str, int] = {}
@@ -177,14 +184,15 @@ class Generator:
         nearest = np.argsort(distance, kind="stable")[: self.options.nearest_k]
         return self.sources[int(nearest[int(rng.integers(len(nearest)))])][k]
 
-    def plan(self, segment: Segment, frame: Frame, held: np.ndarray,
-             loose: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    def plan(self, segment: Segment, frame: Frame, held: np.ndarray, loose: tuple[float, float] | None = None,
+             body: int = -1) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Targets (N, 3) [m], finger commands (N,) and the finger openings they led to in the source
         (N,) [m] or None: the segment carried over to `frame`, with the
         hand's offset from its start blended out (MimicGen interpolates first; we spread the offset
         over the segment's approach, and prepend steps only when that would be too fast). `loose`:
         the extent (radius, height [m]) of the loose object at the frame's origin that the segment
-        approaches untouched (`pass_over`)."""
+        approaches untouched (`pass_over`), and `body` its body: the fingers open no wider than leaves
+        room beside it (`finger_room`), where `Options.fit_opening`."""
         o = self.options
         moved = from_frame(frame, to_frame(segment.frame, segment.targets))
         shift = np.zeros(3)
@@ -216,6 +224,12 @@ class Generator:
         grips = np.concatenate([np.full(n_pre, segment.grips[0]), segment.grips])
         openings = None if segment.openings is None else \
             np.concatenate([np.full(n_pre, segment.openings[0]), segment.openings])
+        if o.fit_opening and loose is not None and body >= 0 and openings is not None:
+            now = float(self._obs["observation"][self.base.observation_layout["gripper_state"]].mean())
+            room = finger_room(self.base.model, self.base.data, self.scene.fingers, body, frame.pos, path[arrive],
+                               now, float(openings.max()))
+            if room is not None:
+                openings = np.minimum(openings, room)
         return path, grips, openings
 
     def attempt(self, number: int) -> Result:
@@ -242,7 +256,7 @@ class Generator:
             segment = self.choose(k, frame, held, rng)
             choices.append((segment.demo, segment.start, segment.end, k))
             starts.append(steps)
-            path, grips, openings = self.plan(segment, frame, held, self._loose[k])
+            path, grips, openings = self.plan(segment, frame, held, self._loose[k], self._loose_body[k])
             # Judged at the end of a segment after the grasp that is not the last (the lift): a good grasp may
             # close only during it (the hand arrived late), and the last segment lets go by design.
             check = len(path) if retries < o.retries and 0 < k < len(self.subtasks) - 1 else 0

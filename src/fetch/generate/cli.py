@@ -44,6 +44,9 @@ def add_generate_parser(sub: Any) -> None:
                    help="times an attempt may make a grasp again whose object is not held at the end of the segment "
                         "after it (open, come back, grasp again), so that demos show recoveries "
                         "(default %(default)s; 0: never)")
+    g.add_argument("--fit-opening", action=argparse.BooleanOptionalAction, default=True,
+                   help="coming down on an object, open the fingers no wider than puts each midway between it and "
+                        "whatever stands beside it (a bin's wall), where the source opened them wider (default on)")
     g.add_argument("--max-attempts", type=int, default=None, help="give up after this many (default 50 per demo)")
     g.add_argument("--cameras", default="",
                    help=f"record these cameras' images too, comma-separated ({', '.join(CAMERAS)}), rendered from "
@@ -64,7 +67,7 @@ def run_generate(args: argparse.Namespace) -> int:
 
     options = Options(max_steps=args.max_steps, success_hold_steps=args.success_hold_steps, selection=args.selection,
                       nearest_k=args.nearest_k, noise=args.noise, stop_on_success=args.stop_on_success,
-                      retries=args.retries)
+                      retries=args.retries, fit_opening=args.fit_opening)
     cameras = tuple(c.strip() for c in args.cameras.split(",") if c.strip())  # as collect's --cameras
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
                             workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray,

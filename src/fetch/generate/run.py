@@ -105,11 +105,13 @@ class Summary:
 
 
 def settings_of(sources: Sources, options: Options, seed: int) -> dict[str, Any]:
-    """What the dataset records as made it; a resumed run must match every field. `retries` 0 is left out,
-    so that a dataset generated before retries existed resumes with `--retries 0`."""
+    """What the dataset records as made it; a resumed run must match every field. `retries` 0 and
+    `fit_opening` off are left out, so that a dataset generated before they existed resumes with
+    `--retries 0 --no-fit-opening`."""
     recorded = dataclasses.asdict(options)
-    if not options.retries:
-        del recorded["retries"]
+    for name in ("retries", "fit_opening"):
+        if not recorded[name]:
+            del recorded[name]
     return {"max_steps": options.max_steps, "success_hold_steps": options.success_hold_steps,
             "stop_on_success": options.stop_on_success, "ignore_env_done": False,
             "generate": {"source": sources.path, "source_fingerprint": sources.fingerprint,

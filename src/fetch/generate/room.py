@@ -1,0 +1,97 @@
+"""How wide the fingers may open around an object before one of them comes down on something beside it.
+
+A person who grasps a block standing next to a wall opens the hand just enough; a pad's X opens it fully
+(5 cm a finger), and carried over to a block beside the bin's wall, that open finger lands on the rim and
+the hand stops 5 cm above the block (Bin-place-v2: 9 of a pixel policy's 11 failures in 100 episodes,
+docs/generate.md). `finger_room` measures, with MuJoCo's ray casts, how far the nearest other thing is
+from the object along the axis the fingers close on, on each side, and gives the opening that puts each
+finger in the middle of the gap between the object and that thing: the most a small error of the hand's
+place may be, either way, without a finger landing on the object's top or on the wall.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+RAY_STEP = 0.01
+"""[m] the height between two rays, from just above the object's bottom to above its top."""
+ABOVE = 0.02
+"""[m] how far above the object's top the rays reach (a finger comes down past everything lower)."""
+
+
+def _extent(model: mujoco.MjModel, data: mujoco.MjData, geoms: np.ndarray, origin: np.ndarray,
+            direction: np.ndarray) -> float:
+    """[m] how far `geoms` reach from `origin` along `direction` (a unit vector), by their bounding boxes."""
+    far = -np.inf
+    for g in geoms:
+        rot = data.geom_xmat[g].reshape(3, 3)
+        centre = data.geom_xpos[g] + rot @ model.geom_aabb[g, :3]
+        half = float(np.abs(direction @ rot) @ model.geom_aabb[g, 3:])
+        far = max(far, float(direction @ (centre - origin)) + half)
+    return far
+
+
+def _free_run(model: mujoco.MjModel, data: mujoco.MjData, start: np.ndarray, direction: np.ndarray, body: int,
+              finger: int, reach: float) -> float:
+    """[m] how far a ray from `start` along `direction` goes before it meets a geom that is not of `body`
+    or of the robot (the bodies with the root of geom `finger`'s) and that a finger would touch (drawn-only
+    geoms, the hand's mocap cross or the goal's marker, are passed through); `reach` if nothing is that near."""
+    robot = model.body_rootid[model.geom_bodyid[finger]]
+    contype, conaffinity = model.geom_contype, model.geom_conaffinity
+    geom = np.zeros(1, dtype=np.int32)
+    travelled = 0.0
+    point = start.copy()
+    while travelled < reach:
+        distance = mujoco.mj_ray(model, data, point, direction, None, 1, body, geom)
+        if distance < 0:
+            return reach
+        travelled += distance
+        g = geom[0]
+        touches = (contype[g] & conaffinity[finger]) or (conaffinity[g] & contype[finger])
+        if touches and model.body_rootid[model.geom_bodyid[g]] != robot:
+            return min(travelled, reach)
+        point = start + (travelled + 1e-4) * direction  # through it, on to what is behind it
+        travelled += 1e-4
+    return reach
+
+
+def finger_room(model: mujoco.MjModel, data: mujoco.MjData, fingers: tuple[int, int], body: int,
+                centre: np.ndarray, hand: np.ndarray, opening: float, widest: float) -> float | None:
+    """The opening [m a finger, as `Expert.finger_servo` takes it] at which, with the hand at `hand` [m],
+    each finger would come down midway between the object (body `body`, at `centre`) and the nearest
+    thing beside it along the fingers' axis, if that is less than `widest`; None if nothing is so near
+    that `widest` would put a finger on it, or if a finger cannot fit between them at all.
+    `opening` is the fingers' opening now (to relate the fingers' places to the opening)."""
+    finger_geoms = [np.flatnonzero(model.geom_bodyid == f) for f in fingers]
+    places = [data.geom_xpos[g].mean(axis=0) for g in finger_geoms]
+    axis = places[1] - places[0]
+    if np.linalg.norm(axis) < 1e-9:
+        return None
+    axis = axis / np.linalg.norm(axis)
+    across = np.cross([0.0, 0.0, 1.0], axis)
+    if np.linalg.norm(across) < 1e-9:  # fingers one above the other: nothing beside them to measure
+        return None
+    across /= np.linalg.norm(across)
+    at_closed = 0.5 * float(axis @ (places[1] - places[0])) - opening  # a finger's centre from the hand's, closed
+    thickness = max(_extent(model, data, g, data.geom_xpos[g].mean(axis=0), axis) for g in finger_geoms)
+    width = max(_extent(model, data, g, data.geom_xpos[g].mean(axis=0), across) for g in finger_geoms)
+    geoms = np.flatnonzero(model.geom_bodyid == body)
+    up = np.array([0.0, 0.0, 1.0])
+    bottom, top = -_extent(model, data, geoms, centre, -up), _extent(model, data, geoms, centre, up)
+    heights = np.arange(bottom + 0.5 * RAY_STEP, top + ABOVE, RAY_STEP)
+    finger = int(finger_geoms[0][0])
+    offset = float(axis @ (hand - centre))  # where the hand comes down, off the object's centre along the axis
+    room = np.inf
+    for side in (1.0, -1.0):
+        direction = side * axis
+        face = _extent(model, data, geoms, centre, direction)
+        reach = side * offset + at_closed + widest + thickness  # the outer face of a finger opened `widest`
+        nearest = min(_free_run(model, data, centre + h * up + s * across, direction, body, finger, reach)
+                      for h in heights for s in (-width, 0.0, width))
+        if nearest >= reach:
+            continue  # nothing this finger would come down on
+        if nearest - face < 2 * thickness:
+            return None  # a finger does not fit between them: no opening helps
+        room = min(room, 0.5 * (face + nearest) - at_closed - side * offset)
+    return float(room) if np.isfinite(room) else None
