@@ -412,6 +412,20 @@ def test_resume_with_other_settings_is_refused(source: pathlib.Path, serial: pat
     assert "recorded differently" in capsys.readouterr().err
 
 
+def test_options_added_later_are_recorded_only_when_on(source: pathlib.Path, serial: pathlib.Path,
+                                                       tmp_path: pathlib.Path) -> None:
+    """`--retries 0 --no-fit-opening` records the settings as generate did before those options existed (so such
+    a dataset resumes with them); the defaults record both."""
+    with open_dataset(serial) as ds:
+        recorded = ds.settings["generate"]
+        assert recorded["retries"] == 1 and recorded["fit_opening"] is True
+    before = tmp_path / "before"
+    assert main(gen_argv(source, before, 2, "--workers", "1", "--retries", "0", "--no-fit-opening")) == 0
+    with open_dataset(before) as ds:
+        assert not {"retries", "fit_opening"} & set(ds.settings["generate"])
+        assert set(ds.settings["generate"]) == set(recorded) - {"retries", "fit_opening"}
+
+
 def test_a_missed_grasp_is_made_again_from_where_the_hand_is(source: pathlib.Path) -> None:
     """With noise that makes grasps miss, --retries makes the grasp again: the attempt is the same as without
     retries up to the first retry, which begins where the object is not held, and some attempts that fail

@@ -1,0 +1,142 @@
+"""`finger_room`: how wide the fingers may open around an object before one comes down on what stands beside
+it, in real MuJoCo: a block set beside the bin's wall, the hand brought down on it with the fingers opened
+fully (a finger lands on the rim) and as wide as `finger_room` says (it reaches the block)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+
+import fetch  # noqa: F401  (registers the envs)
+from fetch.experts.base import Expert
+from fetch.generate.attempt import Generator, Options
+from fetch.generate.room import finger_room
+from fetch.generate.segments import Segment
+from fetch.robot import ACTION_STEP
+from fetch.tasks import bin as bin_task
+from fetch.tasks.subtasks import Frame, Scene
+
+OPEN = 0.05
+"""[m] a finger's full opening (the pad's X)."""
+
+
+def beside_the_bin(env: Any, gap: float) -> np.ndarray:
+    """Put the block on the table below the hand and the bin beside it, its wall's outer face `gap` [m] from the
+    block's face along +y (the fingers' axis); the block's centre."""
+    base = env.unwrapped
+    env.reset(seed=0)
+    grip = base.data.site_xpos[Scene(base.model).grip].copy()
+    block = np.array([grip[0], grip[1] - 0.05, bin_task.REST_ON_TABLE])
+    base.task.block.place(base.data, block)
+    base.data.mocap_pos[base.task.bin_mocap] = (block[0], block[1] + bin_task.BLOCK + gap + bin_task.OUTER,
+                                                bin_task.TABLE_TOP)
+    mujoco.mj_forward(base.model, base.data)
+    return block
+
+
+def come_down(env: Any, block: np.ndarray, opening: float) -> tuple[float, bool, np.ndarray]:
+    """Open the fingers to `opening` [m] above the block, then bring the grip down to its centre. ([m] the
+    grip's height above the block's centre at the end, whether a finger touched the bin, the fingers' centres
+    when they had opened)."""
+    base = env.unwrapped
+    scene = Scene(base.model)
+    bin_body = scene.body("bin")
+    fingers = [np.flatnonzero(base.model.geom_bodyid == f) for f in scene.fingers]
+    obs, _ = base.observe()
+    touched, opened = False, np.zeros((2, 3))
+    for step in range(70):
+        grip = base.data.site_xpos[scene.grip]
+        target = block + [0.0, 0.0, 0.10 if step < 25 else 0.0]
+        move = np.clip((target - grip) / ACTION_STEP, -1.0, 1.0)
+        a3 = Expert.finger_servo(obs, base.observation_layout, opening)
+        obs, *_ = env.step(np.append(move, a3).astype(np.float32))
+        if step == 24:
+            opened = np.array([base.data.geom_xpos[g].mean(axis=0) for g in fingers])
+        d = base.data
+        for c in d.contact[: d.ncon]:
+            pair = {int(base.model.geom_bodyid[c.geom1]), int(base.model.geom_bodyid[c.geom2])}
+            touched |= bin_body in pair and bool(pair & set(scene.fingers))
+    return float(base.data.site_xpos[scene.grip][2] - block[2]), touched, opened
+
+
+@pytest.mark.parametrize("gap", [0.02, 0.025, 0.03])
+def test_fingers_opened_as_finger_room_says_reach_a_block_beside_the_bin_where_fully_open_ones_land_on_it(
+        gap: float) -> None:
+    env = gym.make("Bin-place-v2")
+    base = env.unwrapped
+    try:
+        block = beside_the_bin(env, gap)
+        scene = Scene(base.model)
+        room = finger_room(base.model, base.data, scene.fingers, scene.body("block"), block, block, 0.0, OPEN)
+        assert room is not None and bin_task.BLOCK < room < OPEN, room
+
+        height, touched, _ = come_down(env, beside_the_bin(env, gap), OPEN)
+        assert touched and height > 0.03, (height, touched)  # fully open: on the rim, the hand held up
+
+        height, touched, opened = come_down(env, beside_the_bin(env, gap), room)
+        assert not touched and height < 0.01, (height, touched)
+        # midway: the gap between the block and the wall-side finger is the gap between it and the wall
+        finger = opened[int(np.argmax(opened[:, 1]))]
+        half = 0.007  # the finger's half thickness along y (the robot's model)
+        inner, outer = finger[1] - half - block[1], block[1] + bin_task.BLOCK + gap - (finger[1] + half)
+        assert abs((inner - bin_task.BLOCK) - outer) < 0.003, (inner - bin_task.BLOCK, outer)
+    finally:
+        env.close()
+
+
+def test_nothing_near_leaves_the_opening_alone() -> None:
+    """Only what a finger would touch counts: not the hand's own geoms, not its drawn-only mocap cross (whose
+    vertical bar stands 5 cm from the block here, in the rays' way), not the table below."""
+    for env_id, name in (("PickPlace-v2", "object0"), ("Bin-place-v2", "block")):
+        env = gym.make(env_id)
+        base = env.unwrapped
+        try:
+            env.reset(seed=0)
+            model, data = base.model, base.data
+            scene = Scene(model)
+            body = scene.body(name)
+            grip = data.site_xpos[scene.grip]
+            centre = np.array([grip[0], grip[1] - 0.05, 0.45])
+            data.qpos[model.jnt_qposadr[model.body_jntadr[body]]:][:3] = centre
+            if env_id == "Bin-place-v2":  # the bin far off: 30 cm of table between the block and its wall
+                data.mocap_pos[base.task.bin_mocap, 1] = centre[1] - 0.30 - bin_task.OUTER
+            mujoco.mj_forward(model, data)
+            assert finger_room(model, data, scene.fingers, body, centre, centre, 0.0, OPEN) is None
+        finally:
+            env.close()
+
+
+def approach(block: np.ndarray) -> Segment:
+    """A grasp segment coming straight down on `block` with the fingers fully open (a pad's X)."""
+    held = block + [0.0, 0.0, 0.15]
+    targets = np.array([block + [0.0, 0.0, 0.15 - 0.01 * i] for i in range(1, 16)])
+    return Segment("demo_0", 0, len(targets), held, targets, np.ones(len(targets)), np.full(len(targets), OPEN),
+                   Frame(block.copy(), 0.0), len(targets) - 1)
+
+
+@pytest.mark.parametrize("fit", [True, False])
+def test_generate_narrows_the_approach_only_beside_something(fit: bool) -> None:
+    """Planned by a generator with `fit_opening`, a grasp approach carried over to a block beside the bin opens
+    the fingers as `finger_room` says, and as the source did to one in the open; without, always as the source."""
+    far = np.array([1.30, 0.60, bin_task.REST_ON_TABLE])
+    segment = approach(far)
+    generator = Generator("Bin-place-v2", {}, [[segment] * 3] * 2, Options(max_steps=50, fit_opening=fit), seed=0)
+    base, scene = generator.base, generator.scene
+    body = scene.body("block")
+    try:
+        for gap, near in ((0.02, True), (0.30, False)):
+            block = beside_the_bin(generator.env, gap)
+            generator._obs, _ = base.observe()
+            start = block + [0.0, 0.0, 0.15]
+            _, grips, openings = generator.plan(segment, Frame(block, 0.0), start, scene.loose("block"), body)
+            assert openings is not None and np.all(grips == 1.0)
+            room = finger_room(base.model, base.data, scene.fingers, body, block, block, 0.0, OPEN)
+            assert (room is not None) == near
+            expected = room if fit and room is not None else OPEN
+            assert np.allclose(openings, expected, atol=1e-6), (gap, openings.max(), expected)
+    finally:
+        generator.close()
