@@ -2,7 +2,8 @@
 
     .venv-train/bin/python -m benchmarks.mission [--env PickPlace-v2] [--style standin] [--demos 10]
         [--generated 1000] [--generate-noise STD] [--workers 2] [--dir /tmp/mission]
-        [--inputs pixels [--image-size 84] [--image-quality fast] [--train-args "--steps 3000"]]
+        [--inputs pixels [--image-size 84] [--image-quality fast]] [--generate-args "--retries 0"]
+        [--train-args "--steps 3000"]
 
 1. teleop: 10 demos through the real gamepad path (SDL's virtual pad, the real `GamepadDevice` and
    collector), driven by a stand-in for a person of `--style` (`tests/operators.py`: the expert's
@@ -103,6 +104,8 @@ def main() -> None:
     parser.add_argument("--image-size", type=int, default=84, help="--inputs pixels: the images' side [px]")
     parser.add_argument("--image-quality", default=DEFAULT_IMAGE_QUALITY, choices=IMAGE_QUALITIES,
                         help="--inputs pixels: how the images are drawn (default %(default)s, generate's)")
+    parser.add_argument("--generate-args", default="",
+                        help="more `gym-fetch generate` flags, e.g. \"--no-fit-opening\" (use another --dir)")
     parser.add_argument("--train-args", default="", help="more `gym-fetch train` flags, e.g. \"--steps 3000\"")
     args = parser.parse_args()
     root = pathlib.Path(args.dir) / args.env / args.style
@@ -126,7 +129,7 @@ def main() -> None:
         noise = [] if args.generate_noise is None else ["--noise", str(args.generate_noise)]
         timing["generate"] = gym_fetch("generate", "--source", str(human), "--out", str(generated),
                                        "--demos", str(args.generated), "--workers", str(args.workers), *noise,
-                                       *cameras)
+                                       *cameras, *args.generate_args.split())
         timing_file.write_text(json.dumps(timing))
     if "train" not in timing:
         inputs = ["--inputs", "pixels"] if args.inputs == "pixels" else []
