@@ -42,18 +42,20 @@ class Spy:
         monkeypatch.setattr(rendering, "OffscreenRenderer", Counted)
 
 
-@pytest.mark.parametrize("env_id, quality", [("PickPlace-v2", "full"), ("Reach-v2", "fast"), ("Bin-pick-v2", "fast")])
-def test_images_are_the_ones_the_dataset_records_for_the_state(env_id: str, quality: str) -> None:
+@pytest.mark.parametrize("env_id, quality, hide", [("PickPlace-v2", "full", False), ("Reach-v2", "fast", False),
+                                                    ("Bin-pick-v2", "fast", False), ("PickPlace-v2", "fast", True)])
+def test_images_are_the_ones_the_dataset_records_for_the_state(env_id: str, quality: str, hide: bool) -> None:
     """Reset, steps and set_state + observe: each image equals render-obs' (`StateRenderer`) of that state, at
-    the same image quality."""
-    kwargs = {} if quality == rendering.DEFAULT_IMAGE_QUALITY else {"image_quality": quality}
-    env = gym.make(env_id, cameras=TWO, image_size=84, **kwargs)
+    the same image quality, the goal's marker hidden in both where the env's kwargs say `hide_goal`."""
+    kwargs: dict[str, Any] = {} if quality == rendering.DEFAULT_IMAGE_QUALITY else {"image_quality": quality}
+    goal = {"hide_goal": True} if hide else {}
+    env = gym.make(env_id, cameras=TWO, image_size=84, **kwargs, **goal)
     other = gym.make(env_id)  # a state from elsewhere, restored into the env with cameras
     other.reset(seed=9)
     other.action_space.seed(9)
     for _ in range(3):
         other.step(other.action_space.sample())
-    with StateRenderer(env_id, {}, 84, 84, quality) as reference:
+    with StateRenderer(env_id, goal, 84, 84, quality) as reference, StateRenderer(env_id, {}, 84, 84, quality) as shown:
         obs, _ = env.reset(seed=3)
         observed = [(obs, env.unwrapped.get_state())]
         for action in ([1.0, 0.5, -1.0, -1.0], [-0.5, 1.0, 1.0, 1.0]):
@@ -67,6 +69,8 @@ def test_images_are_the_ones_the_dataset_records_for_the_state(env_id: str, qual
                 image = obs[schema.image_key(camera)]
                 assert image.shape == (84, 84, 3) and image.dtype == np.uint8
                 assert np.array_equal(image, reference.frame(state, camera))
+                if hide and camera == "front":  # the goal's marker is in its view: hiding it changes the image
+                    assert not np.array_equal(image, shown.frame(state, camera))
     assert not np.array_equal(observed[0][0]["front_image"], observed[-1][0]["front_image"])  # the images move
     env.close()
     other.close()

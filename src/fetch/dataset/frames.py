@@ -37,7 +37,8 @@ def check_env_camera(env_id: str, env_kwargs: dict[str, Any], camera: str) -> No
 
 class StateRenderer:
     """Renders states of one env (id and kwargs, as a dataset records them) offscreen, at `quality`
-    (`rendering.IMAGE_QUALITIES`: a dataset's images at its layout's, a video for people at "full")."""
+    (`rendering.IMAGE_QUALITIES`: a dataset's images at its layout's, a video for people at "full"), with
+    the goal's marker hidden where the kwargs say `hide_goal`, as that env's own camera images are."""
 
     def __init__(self, env_id: str, env_kwargs: dict[str, Any], width: int, height: int,
                  quality: str = "full") -> None:
@@ -51,6 +52,7 @@ class StateRenderer:
         model = env.model
         self.cameras = camera_names(model)
         self.width, self.height = width, height
+        self.hide_goal = bool(env_kwargs.get("hide_goal", False))
         # The same renderer and settings as `collect --cameras`: images match those recorded live.
         self._renderer = OffscreenRenderer(model, width, height, quality)
 
@@ -62,7 +64,7 @@ class StateRenderer:
     def frame(self, state: np.ndarray, camera: str) -> np.ndarray:
         """The (H, W, 3) uint8 image of one state."""
         self.env.set_state(state)
-        return self._renderer.render(self.env.data, camera)
+        return self._renderer.render(self.env.data, camera, hide_goal=self.hide_goal)
 
     def frames(self, states: np.ndarray, camera: str) -> np.ndarray:
         """(N, H, W, 3) uint8 images of N states."""
