@@ -414,16 +414,19 @@ def test_resume_with_other_settings_is_refused(source: pathlib.Path, serial: pat
 
 def test_options_added_later_are_recorded_only_when_on(source: pathlib.Path, serial: pathlib.Path,
                                                        tmp_path: pathlib.Path) -> None:
-    """`--retries 0 --no-fit-opening` records the settings as generate did before those options existed (so such
-    a dataset resumes with them); the defaults record both."""
+    """`--retries 0 --no-fit-opening --finger-noise 0.1` (generate's --noise) records the settings as generate did
+    before those options existed (so such a dataset resumes with them); the defaults record all three."""
+    later = {"retries", "fit_opening", "finger_noise"}
     with open_dataset(serial) as ds:
         recorded = ds.settings["generate"]
         assert recorded["retries"] == 1 and recorded["fit_opening"] is True
+        assert recorded["finger_noise"] == pytest.approx(0.1 * 0.05)  # --noise's metres: 0.1 of 5 cm
     before = tmp_path / "before"
-    assert main(gen_argv(source, before, 2, "--workers", "1", "--retries", "0", "--no-fit-opening")) == 0
+    assert main(gen_argv(source, before, 2, "--workers", "1", "--retries", "0", "--no-fit-opening",
+                         "--finger-noise", "0.1")) == 0
     with open_dataset(before) as ds:
-        assert not {"retries", "fit_opening"} & set(ds.settings["generate"])
-        assert set(ds.settings["generate"]) == set(recorded) - {"retries", "fit_opening"}
+        assert not later & set(ds.settings["generate"])
+        assert set(ds.settings["generate"]) == set(recorded) - later
 
 
 def test_a_missed_grasp_is_made_again_from_where_the_hand_is(source: pathlib.Path) -> None:
@@ -473,6 +476,7 @@ def test_a_drawer_task_generates_too(tmp_path: pathlib.Path) -> None:
     (["--selection", "closest"], "unknown selection 'closest'"),
     (["--workers", "0"], "--workers must be at least 1"),
     (["--noise", "-1"], "--noise must be a finite standard deviation"),
+    (["--finger-noise", "nan"], "--finger-noise must be a finite standard deviation"),
     (["--max-steps", "0"], "--max-steps must be at least 1"),
 ])
 def test_bad_arguments_are_named(source: pathlib.Path, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str],

@@ -49,10 +49,15 @@ class Options:
     selection: str = "nearest"
     nearest_k: int = 3
     noise: float = 0.1
-    """standard deviation of Gaussian noise added to the executed action (all four), in action units, the clean
-    action being recorded as `expert_actions` (DART; what training learns). MimicGen adds 0.05 and
-    trains on the noisy actions; that cut a policy trained on the result from 94 % to 74 %
+    """standard deviation of Gaussian noise added to the executed arm action a[:3], in action units (0.1: 5 mm of
+    hand target), the clean action being recorded as `expert_actions` (DART; what training learns). MimicGen
+    adds 0.05 and trains on the noisy actions; that cut a policy trained on the result from 94 % to 74 %
     (PickPlace-v2, docs/generate.md)."""
+    finger_noise: float | None = None
+    """standard deviation of the noise on a[3], whose unit is a metre of finger target (a finger travels 5 cm);
+    None: `noise` times `ACTION_STEP`, the same metres as the hand's. Equal to `noise` it is what generate
+    did before: 0.1 there moved the finger target 10 cm, so the fingers swung between open and closed from
+    step to step, and a policy never saw a steady opening to learn (docs/generate.md)."""
     transit_speed: float = 0.8
     """the blend-in moves the hand at most this fraction of full speed on top of the segment's motion."""
     retries: int = 1
@@ -77,10 +82,17 @@ class Options:
                 raise FetchError(f"--{name.replace('_', '-')} must be at least {low}, got {value}")
         if self.max_steps is not None and self.max_steps > MAX_STEPS:
             raise FetchError(f"--max-steps must be at most {MAX_STEPS}, got {self.max_steps}")
-        if not (math.isfinite(self.noise) and self.noise >= 0):
-            raise FetchError(f"--noise must be a finite standard deviation >= 0, got {self.noise}")
+        for flag, std in (("noise", self.noise), ("finger-noise", self.finger_noise)):
+            if std is not None and not (math.isfinite(std) and std >= 0):
+                raise FetchError(f"--{flag} must be a finite standard deviation >= 0, got {std}")
         if not 0 < self.transit_speed <= 1 or not 0 <= self.blend_fraction <= 1:
             raise FetchError("transit_speed must be in (0, 1] and blend_fraction in [0, 1]")
+
+
+    @property
+    def finger_std(self) -> float:
+        """[a[3] units: m of finger target] the std of the noise on the fingers."""
+        return self.noise * ACTION_STEP if self.finger_noise is None else self.finger_noise
 
 
 class Result(NamedTuple):
@@ -319,8 +331,9 @@ class Generator:
         move = (target - held_grip(base)) / ACTION_STEP
         clean = np.append(np.clip(move, -1.0, 1.0), self._fingers(grip, opening)).astype(np.float32)
         action, label = clean, None
-        if self.options.noise:  # DART: execute a perturbed action, label the clean one (`expert_actions`)
-            noise = rng.normal(0.0, self.options.noise, 4)  # on the fingers too, as the expert device does
+        if self.options.noise or self.options.finger_std:  # DART: execute a perturbed action, label the clean one
+            noise = rng.normal(0.0, 1.0, 4) * (self.options.noise, self.options.noise, self.options.noise,
+                                               self.options.finger_std)
             action = clean.copy()
             action[:3] = np.clip(move + noise[:3], -1.0, 1.0)
             action[3] = np.clip(clean[3] + noise[3], -1.0, 1.0)

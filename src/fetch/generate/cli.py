@@ -38,8 +38,12 @@ def add_generate_parser(sub: Any) -> None:
     g.add_argument("--selection", default="nearest", help="source segment choice: nearest (default) or random")
     g.add_argument("--nearest-k", type=int, default=3, help="choose among this many nearest segments (default 3)")
     g.add_argument("--noise", type=float, default=0.1,
-                   help="std of the noise on the executed action, action units; the clean action is recorded as "
-                        "expert_actions, what training learns (DART; default %(default)s; 0: none)")
+                   help="std of the noise on the executed arm action, action units (0.1: 5 mm of hand target); the "
+                        "clean action is recorded as expert_actions, what training learns (DART; default %(default)s; "
+                        "0: none)")
+    g.add_argument("--finger-noise", type=float, default=None, metavar="STD",
+                   help="std of the noise on a[3], metres of finger target (a finger travels 0.05); default --noise "
+                        "times 0.05, as many metres as the hand's")
     g.add_argument("--retries", type=int, default=1,
                    help="times an attempt may make a grasp again whose object is not held at the end of the segment "
                         "after it (open, come back, grasp again), so that demos show recoveries "
@@ -66,8 +70,8 @@ def run_generate(args: argparse.Namespace) -> int:
     from fetch.generate.run import GenerateConfig, generate
 
     options = Options(max_steps=args.max_steps, success_hold_steps=args.success_hold_steps, selection=args.selection,
-                      nearest_k=args.nearest_k, noise=args.noise, stop_on_success=args.stop_on_success,
-                      retries=args.retries, fit_opening=args.fit_opening)
+                      nearest_k=args.nearest_k, noise=args.noise, finger_noise=args.finger_noise,
+                      stop_on_success=args.stop_on_success, retries=args.retries, fit_opening=args.fit_opening)
     cameras = tuple(c.strip() for c in args.cameras.split(",") if c.strip())  # as collect's --cameras
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
                             workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray,

@@ -105,10 +105,13 @@ class Summary:
 
 
 def settings_of(sources: Sources, options: Options, seed: int) -> dict[str, Any]:
-    """What the dataset records as made it; a resumed run must match every field. `retries` 0 and
-    `fit_opening` off are left out, so that a dataset generated before they existed resumes with
-    `--retries 0 --no-fit-opening`."""
+    """What the dataset records as made it; a resumed run must match every field. `retries` 0, `fit_opening`
+    off and a `finger_noise` equal to `noise` are left out, so that a dataset generated before they existed
+    resumes with `--retries 0 --no-fit-opening --finger-noise <its noise>`."""
     recorded = dataclasses.asdict(options)
+    recorded["finger_noise"] = options.finger_std
+    if recorded["finger_noise"] == options.noise:
+        del recorded["finger_noise"]
     for name in ("retries", "fit_opening"):
         if not recorded[name]:
             del recorded[name]
