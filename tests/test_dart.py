@@ -41,6 +41,7 @@ def test_the_expert_by_default_records_noisy_actions_with_its_clean_ones_beside_
             assert not check_arrays(arrays, ds.layout, 50)
             noise = arrays["actions"] - arrays["expert_actions"]
             assert 0.05 < float(noise[:, :3].std()) < 0.15, "the executed action carries N(0, 0.1) noise"
+            assert 0.05 < float(noise[:, 3].std()) < 0.15, "and on the fingers, a[3]"
             # The labels are what the expert says at the states the noisy arm visited.
             expert.reset()
             said = [expert({k: arrays[f"obs/{k}"][t] for k in OBS_KEYS}) for t in range(50)]
@@ -68,13 +69,26 @@ def test_no_noise_records_the_plain_expert_and_stop_on_success_still_ends_early(
             assert np.allclose(np.clip(said, -1, 1), arrays["actions"], atol=1e-6)
 
 
-@pytest.mark.parametrize("value", ["-0.1", "nan"])
-def test_a_bad_noise_is_refused_in_one_line(value: str, tmp_path: pathlib.Path,
+def test_the_fingers_noise_can_be_set_apart(tmp_path: pathlib.Path) -> None:
+    """--expert-finger-noise 0.005 perturbs the fingers' target as many metres as the hand's (a[3] is metres); the
+    hand's noise is the same draws either way."""
+    plain = _collect(tmp_path / "plain", episodes=1)
+    metres = _collect(tmp_path / "metres", "--expert-finger-noise", "0.005", episodes=1)
+    with open_dataset(plain) as a, open_dataset(metres) as b:
+        before, now = a.arrays(a.demo_names[0]), b.arrays(b.demo_names[0])
+        assert 0.002 < float((now["actions"] - now["expert_actions"])[:, 3].std()) < 0.008
+        first = before["actions"][0, :3] - before["expert_actions"][0, :3]
+        assert np.allclose(first, now["actions"][0, :3] - now["expert_actions"][0, :3], atol=1e-6)
+
+
+@pytest.mark.parametrize(("flag", "value"), [("--expert-noise", "-0.1"), ("--expert-noise", "nan"),
+                                             ("--expert-finger-noise", "-1")])
+def test_a_bad_noise_is_refused_in_one_line(flag: str, value: str, tmp_path: pathlib.Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "1", "--render", "none",
-                 "--out", str(tmp_path / "d"), "--expert-noise", value]) == 2
+                 "--out", str(tmp_path / "d"), flag, value]) == 2
     err = capsys.readouterr().err
-    assert "--expert-noise must be a finite std >= 0" in err and "Traceback" not in err
+    assert f"{flag} must be a finite std >= 0" in err and "Traceback" not in err
 
 
 def test_labels_of_the_wrong_shape_are_a_problem(dart: pathlib.Path) -> None:

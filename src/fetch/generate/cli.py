@@ -43,7 +43,7 @@ def add_generate_parser(sub: Any) -> None:
                         "0: none)")
     g.add_argument("--finger-noise", type=float, default=None, metavar="STD",
                    help="std of the noise on a[3], metres of finger target (a finger travels 0.05); default --noise "
-                        "times 0.05, as many metres as the hand's")
+                        "(0.1: the fingers swing open and shut; 0.005 is the hand's metres)")
     g.add_argument("--retries", type=int, default=1,
                    help="times an attempt may make a grasp again whose object is not held at the end of the segment "
                         "after it (open, come back, grasp again), so that demos show recoveries "

@@ -110,7 +110,7 @@ def settings_of(sources: Sources, options: Options, seed: int) -> dict[str, Any]
     resumes with `--retries 0 --no-fit-opening --finger-noise <its noise>`."""
     recorded = dataclasses.asdict(options)
     recorded["finger_noise"] = options.finger_std
-    if recorded["finger_noise"] == options.noise:
+    if options.finger_std == options.noise:
         del recorded["finger_noise"]
     for name in ("retries", "fit_opening"):
         if not recorded[name]:

@@ -4,7 +4,9 @@ By default the expert records under DART noise (Laskey et al. 2017): the arm exe
 action plus Gaussian noise, so the demos visit the states a learned policy drifts into, and each step
 also records the expert's clean action there (`expert_actions`), which is what `gym-fetch train`
 learns. `actions` stays what the arm did, so the demo replays exactly. docs/learning_curves.md has
-the measurements behind the default; `--expert-noise 0` records the plain expert.
+the measurements behind the default; `--expert-noise 0` records the plain expert. a[3] is metres of
+finger target, so the same 0.1 there swings the fingers between open and closed from step to step;
+`--expert-finger-noise 0.005` perturbs them as many metres as the hand (docs/learning_curves.md).
 """
 
 from __future__ import annotations
@@ -27,13 +29,17 @@ class ExpertDevice:
 
     name = "expert"
 
-    def __init__(self, env: Any, noise: float = 0.0, seed: int = 0) -> None:
+    def __init__(self, env: Any, noise: float = 0.0, seed: int = 0, finger_noise: float | None = None) -> None:
         from fetch.experts import make_expert
 
         if not (math.isfinite(noise) and noise >= 0):
             raise FetchError(f"--expert-noise must be a finite std >= 0 (0: the plain expert), got {noise!r}")
+        if finger_noise is not None and not (math.isfinite(finger_noise) and finger_noise >= 0):
+            raise FetchError(f"--expert-finger-noise must be a finite std >= 0, got {finger_noise!r}")
         self.expert = make_expert(env)
         self.noise = float(noise)
+        self.finger_noise = self.noise if finger_noise is None else float(finger_noise)
+        """[m of finger target] the std on a[3]; by default `noise`."""
         self.rng = np.random.default_rng(seed)
 
     def reset(self) -> None:
@@ -41,9 +47,10 @@ class ExpertDevice:
 
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
         clean = np.asarray(self.expert(obs), dtype=np.float32)
-        if not self.noise:
+        if not self.noise and not self.finger_noise:
             return Command(clean)
-        noisy = np.clip(clean + self.rng.normal(0.0, self.noise, clean.shape), -1.0, 1.0)
+        scale = np.array([self.noise, self.noise, self.noise, self.finger_noise])
+        noisy = np.clip(clean + self.rng.normal(0.0, 1.0, clean.shape) * scale, -1.0, 1.0)
         return Command(noisy.astype(np.float32), label=clean)
 
     def close(self) -> None:
@@ -55,11 +62,16 @@ def add_expert_arguments(p: Any) -> None:
                    help="with --device expert: std of the Gaussian noise added to the executed action, the "
                         "expert's clean action being recorded as `expert_actions` for training (DART; "
                         "default %(default)s; 0: the plain expert)")
+    p.add_argument("--expert-finger-noise", type=float, default=None, metavar="STD",
+                   help="with --device expert: std of that noise on a[3], metres of finger target (a finger travels "
+                        "0.05); default --expert-noise (0.1: the fingers swing open and shut; 0.005 is the hand's "
+                        "metres)")
 
 
 def build_expert(context: DeviceContext) -> ExpertDevice:
     args = context.args
-    return ExpertDevice(context.env, getattr(args, "expert_noise", EXPERT_NOISE), getattr(args, "seed", 0))
+    return ExpertDevice(context.env, getattr(args, "expert_noise", EXPERT_NOISE), getattr(args, "seed", 0),
+                        getattr(args, "expert_finger_noise", None))
 
 
 KIND = DeviceKind(
