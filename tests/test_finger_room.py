@@ -88,6 +88,24 @@ def test_fingers_opened_as_finger_room_says_reach_a_block_beside_the_bin_where_f
         env.close()
 
 
+def test_where_the_hand_comes_down_moves_the_opening_with_it() -> None:
+    """The wall-side finger stays midway in the gap wherever along the axis the hand comes down; so far
+    towards the wall that the other finger would land on the block, no opening is given (None)."""
+    env = gym.make("Bin-place-v2")
+    base = env.unwrapped
+    try:
+        block = beside_the_bin(env, 0.02)
+        scene = Scene(base.model)
+        body = scene.body("block")
+        centred = finger_room(base.model, base.data, scene.fingers, body, block, block, 0.0, OPEN)
+        away = finger_room(base.model, base.data, scene.fingers, body, block, block - [0.0, 0.005, 0.0], 0.0, OPEN)
+        towards = finger_room(base.model, base.data, scene.fingers, body, block, block + [0.0, 0.015, 0.0], 0.0, OPEN)
+        assert centred is not None and away == pytest.approx(centred + 0.005, abs=1e-6)
+        assert towards is None
+    finally:
+        env.close()
+
+
 def test_nothing_near_leaves_the_opening_alone() -> None:
     """Only what a finger would touch counts: not the hand's own geoms, not its drawn-only mocap cross (whose
     vertical bar stands 5 cm from the block here, in the rays' way), not the table below."""

@@ -88,7 +88,6 @@ class Options:
         if not 0 < self.transit_speed <= 1 or not 0 <= self.blend_fraction <= 1:
             raise FetchError("transit_speed must be in (0, 1] and blend_fraction in [0, 1]")
 
-
     @property
     def finger_std(self) -> float:
         """[a[3] units: m of finger target] the std of the noise on the fingers."""

@@ -61,7 +61,8 @@ def finger_room(model: mujoco.MjModel, data: mujoco.MjData, fingers: tuple[int, 
     """The opening [m a finger, as `Expert.finger_servo` takes it] at which, with the hand at `hand` [m],
     each finger would come down midway between the object (body `body`, at `centre`) and the nearest
     thing beside it along the fingers' axis, if that is less than `widest`; None if nothing is so near
-    that `widest` would put a finger on it, or if a finger cannot fit between them at all.
+    that `widest` would put a finger on it, if a finger cannot fit between them at all, or if the hand comes
+    down so far off the object's centre that, opened so, the finger on the other side would land on the object.
     `opening` is the fingers' opening now (to relate the fingers' places to the opening)."""
     finger_geoms = [np.flatnonzero(model.geom_bodyid == f) for f in fingers]
     places = [data.geom_xpos[g].mean(axis=0) for g in finger_geoms]
@@ -82,10 +83,11 @@ def finger_room(model: mujoco.MjModel, data: mujoco.MjData, fingers: tuple[int, 
     heights = np.arange(bottom + 0.5 * RAY_STEP, top + ABOVE, RAY_STEP)
     finger = int(finger_geoms[0][0])
     offset = float(axis @ (hand - centre))  # where the hand comes down, off the object's centre along the axis
-    room = np.inf
+    room, clear = np.inf, 0.0
     for side in (1.0, -1.0):
         direction = side * axis
         face = _extent(model, data, geoms, centre, direction)
+        clear = max(clear, face + thickness - at_closed - side * offset)  # the least that misses the object's top
         reach = side * offset + at_closed + widest + thickness  # the outer face of a finger opened `widest`
         nearest = min(_free_run(model, data, centre + h * up + s * across, direction, body, finger, reach)
                       for h in heights for s in (-width, 0.0, width))
@@ -94,4 +96,6 @@ def finger_room(model: mujoco.MjModel, data: mujoco.MjData, fingers: tuple[int, 
         if nearest - face < 2 * thickness:
             return None  # a finger does not fit between them: no opening helps
         room = min(room, 0.5 * (face + nearest) - at_closed - side * offset)
-    return float(room) if np.isfinite(room) else None
+    if not np.isfinite(room) or room < clear:
+        return None  # nothing near, or the hand comes down so far off-centre that a finger would land on the object
+    return float(room)
