@@ -184,3 +184,23 @@ def test_a_stop_while_the_handlers_are_put_back_is_still_the_exit_status(monkeyp
     finally:
         for s, handler in before.items():
             signal.signal(s, handler)
+
+
+def test_a_dropped_stop_is_not_sent_again_once_the_tool_has_left() -> None:
+    """`_dropped` sends a swallowed stop again 20 ms later; a tool that has left `stop_on_signals` by then (it
+    acted on the stop another way) gets no signal in its exit's own code, where it was printed as an ignored
+    exception in an atexit callback."""
+    import time
+    import types
+
+    from fetch import stopping
+
+    received: list[int] = []
+    with stopping.stop_on_signals():
+        stopping._dropped(types.SimpleNamespace(exc_value=stopping.Stopped(signal.SIGINT)))
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+    try:
+        time.sleep(0.3)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert received == []
