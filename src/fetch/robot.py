@@ -14,6 +14,8 @@ from fetch.timing import N_SUBSTEPS
 ACTION_STEP = 0.05
 """[m] how far the hand's target moves along each world axis per step at |a| = 1 (the classic suite)."""
 
+
+
 QUAT_STEP = np.array([1.0, 0.0, 1.0, 0.0])
 """Added to the hand's orientation quaternion each step (MuJoCo normalises the sum), as in the
 classic suite: the target orientation is halfway between the hand's and fingers-down."""
@@ -35,6 +37,14 @@ class Workspace:
         low, high = np.asarray(self.low), np.asarray(self.high)
         if low.shape != (3,) or high.shape != (3,) or not np.all(low < high):
             raise ValueError(f"workspace low {self.low} must be below high {self.high} on each of x, y, z")
+
+
+def dart_std(noise: float, finger_noise: float | None) -> np.ndarray:
+    """(4,) the std of DART's noise on each action entry: `noise` on the hand's three (action units: 0.1 is
+    5 mm of hand target), `finger_noise` on a[3] (metres of finger target; None: `noise`, so 0.1 swings the
+    fingers open and shut). The expert device and `generate` perturb their actions with it."""
+    finger = noise if finger_noise is None else finger_noise
+    return np.array([noise, noise, noise, finger])
 
 
 def checked_actions(actions: np.ndarray) -> np.ndarray:

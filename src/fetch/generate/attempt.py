@@ -22,7 +22,7 @@ from fetch.experts.base import Expert
 from fetch.generate.room import finger_room
 from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
 from fetch.rendering import DEFAULT_IMAGE_QUALITY
-from fetch.robot import ACTION_STEP
+from fetch.robot import ACTION_STEP, dart_std
 from fetch.tasks import MAX_STEPS
 from fetch.tasks.subtasks import Frame, Grasped, Lifted, Scene
 
@@ -91,7 +91,7 @@ class Options:
     @property
     def finger_std(self) -> float:
         """[a[3] units: m of finger target] the std of the noise on the fingers."""
-        return self.noise if self.finger_noise is None else self.finger_noise
+        return float(dart_std(self.noise, self.finger_noise)[3])
 
 
 class Result(NamedTuple):
@@ -167,6 +167,7 @@ class Generator:
             raise FetchError("no source demo could be cut into subtasks; nothing to generate from")
         self.sources = sources
         self.options = options
+        self._noise_std = dart_std(options.noise, options.finger_noise)
         self.seed = seed
         self.env_kwargs, self.cameras, self.image_size = env_kwargs, cameras, image_size
         self.image_quality = image_quality
@@ -330,9 +331,8 @@ class Generator:
         move = (target - held_grip(base)) / ACTION_STEP
         clean = np.append(np.clip(move, -1.0, 1.0), self._fingers(grip, opening)).astype(np.float32)
         action, label = clean, None
-        if self.options.noise or self.options.finger_std:  # DART: execute a perturbed action, label the clean one
-            noise = rng.normal(0.0, 1.0, 4) * (self.options.noise, self.options.noise, self.options.noise,
-                                               self.options.finger_std)
+        if self._noise_std.any():  # DART: execute a perturbed action, label the clean one (`expert_actions`)
+            noise = rng.normal(0.0, 1.0, 4) * self._noise_std
             action = clean.copy()
             action[:3] = np.clip(move + noise[:3], -1.0, 1.0)
             action[3] = np.clip(clean[3] + noise[3], -1.0, 1.0)

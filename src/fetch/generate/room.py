@@ -66,15 +66,15 @@ def finger_room(model: mujoco.MjModel, data: mujoco.MjData, fingers: tuple[int, 
     `opening` is the fingers' opening now (to relate the fingers' places to the opening)."""
     finger_geoms = [np.flatnonzero(model.geom_bodyid == f) for f in fingers]
     places = [data.geom_xpos[g].mean(axis=0) for g in finger_geoms]
-    axis = places[1] - places[0]
-    if np.linalg.norm(axis) < 1e-9:
+    span = float(np.linalg.norm(places[1] - places[0]))  # between the fingers' centres
+    if span < 1e-9:
         return None
-    axis = axis / np.linalg.norm(axis)
+    axis = (places[1] - places[0]) / span
     across = np.cross([0.0, 0.0, 1.0], axis)
     if np.linalg.norm(across) < 1e-9:  # fingers one above the other: nothing beside them to measure
         return None
     across /= np.linalg.norm(across)
-    at_closed = 0.5 * float(axis @ (places[1] - places[0])) - opening  # a finger's centre from the hand's, closed
+    at_closed = 0.5 * span - opening  # a finger's centre from the hand's, closed
     thickness = max(_extent(model, data, g, data.geom_xpos[g].mean(axis=0), axis) for g in finger_geoms)
     width = max(_extent(model, data, g, data.geom_xpos[g].mean(axis=0), across) for g in finger_geoms)
     geoms = np.flatnonzero(model.geom_bodyid == body)

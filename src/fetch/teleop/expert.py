@@ -6,7 +6,8 @@ also records the expert's clean action there (`expert_actions`), which is what `
 learns. `actions` stays what the arm did, so the demo replays exactly. docs/learning_curves.md has
 the measurements behind the default; `--expert-noise 0` records the plain expert. a[3] is metres of
 finger target, so the same 0.1 there swings the fingers between open and closed from step to step;
-`--expert-finger-noise 0.005` perturbs them as many metres as the hand (docs/learning_curves.md).
+`--expert-finger-noise 0.005` perturbs them as many metres as the hand (docs/training.md, "The
+fingers' DART noise").
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from fetch.errors import FetchError
+from fetch.robot import dart_std
 from fetch.teleop.devices import Command, DeviceContext, DeviceKind
 
 EXPERT_NOISE = 0.1
@@ -38,8 +40,8 @@ class ExpertDevice:
             raise FetchError(f"--expert-finger-noise must be a finite std >= 0, got {finger_noise!r}")
         self.expert = make_expert(env)
         self.noise = float(noise)
-        self.finger_noise = self.noise if finger_noise is None else float(finger_noise)
-        """[m of finger target] the std on a[3]; by default `noise`."""
+        self.std = dart_std(self.noise, finger_noise)
+        """(4,) the noise's std on each action entry (`dart_std`)."""
         self.rng = np.random.default_rng(seed)
 
     def reset(self) -> None:
@@ -47,10 +49,9 @@ class ExpertDevice:
 
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
         clean = np.asarray(self.expert(obs), dtype=np.float32)
-        if not self.noise and not self.finger_noise:
+        if not self.std.any():
             return Command(clean)
-        scale = np.array([self.noise, self.noise, self.noise, self.finger_noise])
-        noisy = np.clip(clean + self.rng.normal(0.0, 1.0, clean.shape) * scale, -1.0, 1.0)
+        noisy = np.clip(clean + self.rng.normal(0.0, 1.0, clean.shape) * self.std, -1.0, 1.0)
         return Command(noisy.astype(np.float32), label=clean)
 
     def close(self) -> None:
