@@ -162,6 +162,33 @@ def test_a_second_collector_on_the_same_output_refuses(tmp_path: pathlib.Path,
     assert collect(tmp_path, episodes=1) == 0
 
 
+@pytest.mark.parametrize("made", [True, False], ids=["new-out", "existing-empty-out"])
+def test_a_stop_while_the_collector_starts_leaves_no_directory_that_is_not_a_dataset(
+        tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch, made: bool) -> None:
+    """A Ctrl-C landing between the directory's creation and its index's (CI hit it a second after
+    `collect` started) left an empty `--out`, which tools then called "no such file". Now the directory
+    goes with the stop if the collector made it; one that was there before stays, as it was."""
+    import signal
+
+    from fetch.dataset.writer import DatasetWriter
+    from fetch.stopping import Stopped
+
+    def stopped(self: DatasetWriter) -> None:  # the signal's handler raises here, as a Ctrl-C would
+        (self.out_dir / ".demos.hdf5.half.tmp").write_bytes(b"\x89HDF")
+        raise Stopped(signal.SIGINT)
+
+    out = tmp_path / "out"
+    if not made:
+        out.mkdir()
+    monkeypatch.setattr(DatasetWriter, "_write_index", stopped)
+    assert collect(out, episodes=1) == 128 + signal.SIGINT
+    assert out.exists() != made
+    monkeypatch.undo()
+    assert collect(out, episodes=1) == 0  # and the directory is free: the lock was let go
+    with open_dataset(out) as ds:
+        assert validate(ds) == [] and len(ds.demo_names) == 1
+
+
 @pytest.mark.parametrize("content", [b"", b"not an hdf5 file at all" * 10, b"\x89HDF\r\n\x1a\n" + b"\0" * 100])
 def test_a_corrupt_file_is_a_clear_error_naming_it(tmp_path: pathlib.Path, content: bytes,
                                                    capsys: pytest.CaptureFixture[str]) -> None:

@@ -58,12 +58,19 @@ class BackgroundWriter:
     def __init__(self, out_dir: str | os.PathLike[str], on_saved: Callable[[str, Demo], None] | None) -> None:
         self.out_dir = pathlib.Path(out_dir)
         self.on_saved = on_saved
+        self._lock_file: Any = None
+        self._made_out_dir = not self.out_dir.exists()
+        """the directory is this writer's: a failure (or a stop) before its first file is published removes it."""
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise DatasetError(f"cannot create the output directory {self.out_dir}: {e.strerror}") from e
-        require_writable(self.out_dir)
         self._lock_file = self._lock()
+        try:
+            require_writable(self.out_dir)
+        except BaseException:
+            self._abandon()
+            raise
         self.attempts = 0
         self.saved = 0
         self.recovered = 0
@@ -90,6 +97,22 @@ class BackgroundWriter:
         if self._lock_file is not None:  # once: the descriptor's number may be reused after close
             unlock_directory(self._lock_file)
             self._lock_file = None
+
+    def _abandon(self) -> None:
+        """Give the directory up before anything was published in it: if this writer made it and holds its
+        lock, it is removed with what the writer put there (empty folders, half-written `.tmp` files), so a
+        stop or a failure while starting leaves no directory that is not a dataset (a Ctrl-C a moment after
+        `collect` started left an empty `--out`). Removed before the lock is let go: another writer that
+        takes the lock next makes its own."""
+        if self._made_out_dir and self._lock_file is not None:
+            with contextlib.suppress(OSError):
+                for tmp in self.out_dir.rglob(".*.tmp"):
+                    tmp.unlink()
+                for folder in sorted(self.out_dir.rglob("*"), key=lambda q: len(q.parts), reverse=True):
+                    if folder.is_dir() and not folder.is_symlink():
+                        folder.rmdir()
+                self.out_dir.rmdir()
+        self._unlock()
 
     def reserve_attempt(self) -> int:
         """The number of the attempt about to start."""

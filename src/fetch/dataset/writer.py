@@ -118,10 +118,10 @@ class DatasetWriter(BackgroundWriter):
                 self._refuse_orphans()
                 self._write_index()
         except OSError as e:
-            self._unlock()
+            self._abandon()
             raise DatasetError(f"cannot write a dataset in {self.out_dir}: {e}") from e
         except BaseException:
-            self._unlock()
+            self._abandon()
             raise
         self.saved = len(self._entries)
         self._start()
