@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import io
 import json
@@ -75,6 +76,29 @@ def native_bf16(device: torch.device) -> bool:
                                                                          "_is_amx_tile_supported"))
 
 
+MALLOC_HELD = (-3, 32 << 20), (-1, 1 << 30)
+"""glibc `mallopt` settings while training: blocks up to 32 MiB come from the heap (M_MMAP_THRESHOLD, -3), and
+up to 1 GiB that the heap frees stays with the process (M_TRIM_THRESHOLD, -1)."""
+
+
+def hold_freed_memory() -> bool:
+    """Have glibc's malloc keep the memory a training step frees for the next step. A pixel step allocates
+    and frees tens of MB of activations; by default glibc returned them to the kernel (freed blocks over
+    its threshold are unmapped, the heap's top is trimmed) and took them back, zeroed page by page, the
+    next step: a fifth of the CPU time went to the kernel, and a step on two AVX2 cores took 235 against
+    188 ms (`python -m benchmarks.pixel_step`). Process-wide and for the rest of the process (glibc cannot
+    go back to its adaptive default): it keeps up to 1 GiB more than it would. False where there is no
+    glibc (macOS, musl's mallopt does nothing)."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
+    return all(mallopt(option, value) == 1 for option, value in MALLOC_HELD)
+
+
 def validation_loss(policy: PolicyConfig, model: torch.nn.Module, valid: Samples | None,
                     device: torch.device = CPU) -> float | None:
     """The behaviour-cloning loss on the validation demos (whatever else the kind's loss adds)."""
@@ -141,6 +165,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
             chosen.config, precision="bf16" if native_bf16(device) else "fp32"))
         config = chosen.config
     torch.set_num_threads(config.threads)
+    hold_freed_memory()
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(config.seed)
     norm = Normalizer.fit(demos.train, policy_config.goal_offsets, policy_config.blind)
