@@ -49,7 +49,7 @@ def _model(config: PolicyConfig, layout: torch.memory_format) -> tuple[PixelChun
     torch.manual_seed(0)
     model = PixelChunk(config)
     model.memory_format = layout
-    model.encoders.to(memory_format=layout)
+    model.encoders.to(memory_format=layout)  # type: ignore[call-overload]
     return model, torch.optim.Adam(model.parameters(), lr=1e-3)
 
 

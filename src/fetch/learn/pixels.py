@@ -93,7 +93,8 @@ class PixelChunk(nn.Module):
     def __init__(self, config: PolicyConfig) -> None:
         super().__init__()
         self.chunk = config.chunk
-        self.encoders = nn.ModuleList(Encoder() for _ in config.cameras).to(memory_format=self.memory_format)
+        self.encoders = nn.ModuleList(Encoder() for _ in config.cameras)
+        self.encoders.to(memory_format=self.memory_format)  # type: ignore[call-overload]  # (torch's stubs lack it)
         sizes = [config.obs_size + 2 * KEYPOINTS * len(config.cameras)] + [config.hidden] * config.layers
         body: list[nn.Module] = []
         for a, b in zip(sizes[:-1], sizes[1:], strict=True):
