@@ -132,6 +132,8 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=None, help="train --from's --steps (default: train's)")
     parser.add_argument("--drift", action="store_true", help="the stand-in also takes over on drift")
     parser.add_argument("--stall", type=int, default=STALL, help=f"the stand-in's STALL (default {STALL})")
+    parser.add_argument("--expert-finger-noise", type=float, default=None,
+                        help="collect's --expert-finger-noise for the expert demos (default: collect's, = the arm's)")
     args = parser.parse_args()
     root = pathlib.Path(args.dir)
     root.mkdir(parents=True, exist_ok=True)
@@ -141,8 +143,10 @@ def main() -> None:
 
     def collect_expert(out: pathlib.Path, episodes: int, seed: int) -> None:
         if not out.exists():
+            noise = args.expert_finger_noise
+            fingers = [] if noise is None else ["--expert-finger-noise", str(noise)]
             assert gym_fetch(["collect", "--env", env_id, "--device", "expert", "--episodes", str(episodes),
-                              "--render", "none", "--seed", str(seed), "--out", str(out)]) == 0
+                              "--render", "none", "--seed", str(seed), "--out", str(out), *fingers]) == 0
 
     def train(out: pathlib.Path, *data: pathlib.Path, start: pathlib.Path | None = None) -> None:
         if not (out / "checkpoint.pt").exists() or not (out / "trained").exists():  # a stopped run resumes
@@ -188,7 +192,8 @@ def main() -> None:
     with open_dataset(corrected) as ds:
         demos, takeovers, person, steps = summarize(ds).corrections
     print(machine_line("torch"))
-    print(f"{env_id}, {args.demos} expert demos, "
+    fingers = "" if args.expert_finger_noise is None else f" (--expert-finger-noise {args.expert_finger_noise})"
+    print(f"{env_id}, {args.demos} expert demos{fingers}, "
           f"{args.attempts} attempts with the stand-in ready to take over ({takeovers} takeovers, {person} of "
           f"their {steps} steps driven by it), {args.episodes} evaluation episodes\n")
     print(f"--correction-weight {args.weight or 'default'}, --steps {args.steps or 'default'} for --from\n")
