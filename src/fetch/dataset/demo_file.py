@@ -32,10 +32,23 @@ def write_demo_group(group: h5py.Group, demo: Demo) -> None:
     for key, value in demo.attrs.items():
         group.attrs[key] = value
     for key, array in demo.arrays.items():
-        # Images compress well and are large; the rest is small and read often, so stays raw.
-        options: dict[str, Any] = {"compression": "gzip", "compression_opts": 4} if array.dtype == np.uint8 \
-            and array.ndim == 4 and len(array) else {}
-        group.create_dataset(key, data=array, **options)
+        group.create_dataset(key, data=array, **storage(array))
+
+
+IMAGE_CHUNK = 8
+"""[frames] the images of this many steps are compressed together (an HDF5 chunk)."""
+
+
+def storage(array: np.ndarray) -> dict[str, Any]:
+    """How `array` is stored: images (T, H, W, 3) uint8 gzip-compressed in chunks of `IMAGE_CHUNK` whole
+    frames; the rest, small and read often, raw. h5py's own chunks for an image array were (21, 21, 21, 2)
+    blocks, 1.9 kB each, so writing or reading a demo meant deflating or inflating hundreds: whole frames
+    read 3.1x and write 2.2x as fast and take 17 % less room (the mission's Bin-place demos, 84 x 84, two
+    cameras: 12 against 38 ms, 38 against 83 ms, 322 against 386 kB a demo; `benchmarks.image_storage`). A
+    demo of no steps has nothing to chunk (HDF5 chunks, and so compresses, only arrays that have rows)."""
+    if array.dtype != np.uint8 or array.ndim != 4 or not len(array):
+        return {}
+    return {"compression": "gzip", "compression_opts": 4, "chunks": (min(IMAGE_CHUNK, len(array)), *array.shape[1:])}
 
 
 def read_demo_group(group: h5py.Group, keep: Callable[[str], bool] | None = None) -> Demo:

@@ -22,6 +22,7 @@ import numpy as np
 from fetch._durable import NO_ROOM, why
 from fetch._progress import progress
 from fetch.dataset import schema
+from fetch.dataset.demo_file import storage
 from fetch.dataset.durable import Rewrites, editing
 from fetch.dataset.reader import FILE_HELP, open_dataset, resolve
 from fetch.dataset.validation import require_valid
@@ -55,9 +56,7 @@ def _store(group: h5py.Group, key: str, images: np.ndarray) -> None:
         path = f"{prefix}/{key}"
         if path in group:
             del group[path]  # an earlier, interrupted run's (or --overwrite)
-        # A demo of no steps has no rows: HDF5 chunks (and so compresses) only arrays that have some.
-        options = {"compression": "gzip", "compression_opts": 4, "chunks": (1, *rows.shape[1:])} if len(rows) else {}
-        group.create_dataset(path, data=rows, **options)
+        group.create_dataset(path, data=rows, **storage(rows))
 
 
 def _with_camera(layout: schema.Layout, camera: str, size: int, quality: str) -> schema.Layout:
