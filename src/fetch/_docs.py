@@ -61,6 +61,7 @@ def layout_tables() -> str:
 def dataset_table() -> str:
     """The dataset layout (schema.py), with PickPlace-v2's sizes as the example."""
     from fetch.dataset import schema
+    from fetch.dataset.demo_file import IMAGE_CHUNK
 
     layout = schema.Layout(obs_sizes=(("observation", 25), ("achieved_goal", 3), ("desired_goal", 3)),
                            state_size=0)
@@ -78,7 +79,9 @@ def dataset_table() -> str:
         optional = "optional: " if field in schema.OPTIONAL_FIELDS else ""
         rows.append(f"| `data/demo_<i>/{field.path}` | {field.dtype} | {shape} | {optional}{field.doc} |")
     rows.append("| `data/demo_<i>/obs/<camera>_image`, `next_obs/...` | uint8 | (T, H, W, 3) | "
-                "with `--cameras` or after `render-obs`: the camera's image before / after step t |")
+                "with `--cameras` or after `render-obs`: the camera's image before / after step t; gzip-compressed, "
+                f"{IMAGE_CHUNK} whole frames to an HDF5 chunk (since 2026-11-27; before, h5py's own chunks; "
+                "readers read either) |")
     rows.append("| `mask/train`, `mask/valid`, `mask/failed` | bytes | (n,) | demo names: a 90/10 split of the "
                 "successful demos (every 10th is valid, or as `split` drew it); kept failures |")
     return "\n".join(rows)
