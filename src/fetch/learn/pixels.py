@@ -87,7 +87,7 @@ class PixelChunk(nn.Module):
 
     memory_format = torch.channels_last
     """How the encoders' weights and images lie in memory: NHWC (an (N, H, W, 3) image's permuted view
-    already is), on which oneDNN's convolutions train a step 1.2x as fast as on NCHW on a 2-core AVX2 CPU
+    already is), on which oneDNN's convolutions train a step 1.13x as fast as on NCHW on a 2-core AVX2 CPU
     (`python -m benchmarks.pixel_step`). The same model and the same numbers up to rounding."""
 
     def __init__(self, config: PolicyConfig) -> None:

@@ -85,8 +85,8 @@ def hold_freed_memory() -> bool:
     """Have glibc's malloc keep the memory a training step frees for the next step. A pixel step allocates
     and frees tens of MB of activations; by default glibc returned them to the kernel (freed blocks over
     its threshold are unmapped, the heap's top is trimmed) and took them back, zeroed page by page, the
-    next step: a fifth of the CPU time went to the kernel, and a step on two AVX2 cores took 235 against
-    188 ms (`python -m benchmarks.pixel_step`). Process-wide and for the rest of the process (glibc cannot
+    next step: a third of a step's time went to the kernel, and a step on two AVX2 cores took 240 against
+    191 ms (`python -m benchmarks.pixel_step`). Process-wide and for the rest of the process (glibc cannot
     go back to its adaptive default): it keeps up to 1 GiB more than it would. False where there is no
     glibc (macOS, musl's mallopt does nothing)."""
     if not sys.platform.startswith("linux"):
