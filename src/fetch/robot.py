@@ -14,8 +14,6 @@ from fetch.timing import N_SUBSTEPS
 ACTION_STEP = 0.05
 """[m] how far the hand's target moves along each world axis per step at |a| = 1 (the classic suite)."""
 
-
-
 QUAT_STEP = np.array([1.0, 0.0, 1.0, 0.0])
 """Added to the hand's orientation quaternion each step (MuJoCo normalises the sum), as in the
 classic suite: the target orientation is halfway between the hand's and fingers-down."""
