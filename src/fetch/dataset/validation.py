@@ -4,6 +4,7 @@ lists), and the check every tool makes before it uses a file (`require_valid`)."
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from typing import Any
 
 import h5py
@@ -86,36 +87,55 @@ def _element_names(xml: Any) -> frozenset[str] | None:
     return frozenset(f"{type(e).__name__[3:].lower()} {e.name}" for e in elements if e.name)
 
 
-def _demo_problems(ds: Dataset, name: str, images: bool = True) -> tuple[list[str], int | None]:
-    """What is wrong with one demo (each problem starts with its name), and its steps if they are known."""
+Keep = Callable[[str], bool]
+"""Which of a demo's camera images (by path in the demo group) a pass over the file reads for its caller."""
+Visit = Callable[[str, dict[str, Any], dict[str, np.ndarray]], None]
+"""Called with a sound demo's name, attributes and arrays (every array but the images `Keep` leaves out)."""
+
+
+def _is_image(path: str) -> bool:
+    return path.endswith(schema.image_key(""))
+
+
+def _demo_problems(ds: Dataset, name: str, images: bool = True, keep: Keep | None = None,
+                   visit: Visit | None = None) -> tuple[list[str], int | None, dict[str, Any]]:
+    """What is wrong with one demo (each problem starts with its name), its steps if they are known and its
+    attributes (empty where unreadable). With `visit`, a demo without problems is handed to it, read once
+    for both: every array, but of the camera images only those `keep` takes."""
     try:
         group = ds.demo(name)
     except DatasetError as e:
-        return [str(e)], None
+        return [str(e)], None, {}
     try:
         attrs = {k: plain_value(v) for k, v in group.attrs.items()}
         attr_problems = schema.check_demo_attrs(attrs)
         if attr_problems:
-            return [f"{name}: {p}" for p in attr_problems], None
+            return [f"{name}: {p}" for p in attr_problems], None, {}
         t = int(attrs["num_samples"])
-        arrays: dict[str, h5py.Dataset] = {}
+        nodes: dict[str, h5py.Dataset] = {}
 
-        def visit(path: str, node: Any, into: dict[str, Any] = arrays) -> None:
+        def found(path: str, node: Any, into: dict[str, Any] = nodes) -> None:
             if isinstance(node, h5py.Dataset):
                 into[path] = node
 
-        group.visititems(visit)
-        return _content_problems(ds, name, attrs, arrays, t, images), t
+        group.visititems(found)
+        # Checked as read (a numpy array's [()] is itself); images stay on disk unless the caller wants them.
+        arrays: dict[str, Any] = {p: node if _is_image(p) and (visit is None or keep is None or not keep(p))
+                                  else node[()] for p, node in nodes.items()}
+        problems = _content_problems(ds, name, attrs, arrays, t, images)
+        if visit is not None and not problems:
+            visit(name, attrs, {p: a for p, a in arrays.items() if isinstance(a, np.ndarray)})
+        return problems, t, attrs
     except READ_ERRORS as e:
         try:
             file, _ = ds.demo_file(name)
         except READ_ERRORS:
             file = ds.path
         where = file.relative_to(ds.path.parent) if file.is_relative_to(ds.path.parent) else file
-        return [f"{name} cannot be read (its file {where} is corrupt: {one_line(e)})"], None
+        return [f"{name} cannot be read (its file {where} is corrupt: {one_line(e)})"], None, {}
 
 
-def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dict[str, h5py.Dataset], t: int,
+def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dict[str, Any], t: int,
                       images: bool) -> list[str]:
     layout = ds.layout
     shape_problems = schema.check_arrays(arrays, layout, t)
@@ -190,8 +210,10 @@ def _reward_problem(ds: Dataset, arrays: dict[str, h5py.Dataset], rewards: np.nd
             f"(env_kwargs reward_type {reward_type!r})")
 
 
-def validate(ds: Dataset) -> list[str]:
-    """Every inconsistency found in the file (empty when it is sound); each names the demo and key."""
+def validate(ds: Dataset, keep: Keep | None = None, visit: Visit | None = None) -> list[str]:
+    """Every inconsistency found in the file (empty when it is sound); each names the demo and key. With
+    `visit`, each sound demo is handed to it as it is checked, read once for both (`_demo_problems`): a
+    loader that checks a whole file reads it once."""
     problems = header_problems(ds)
     if journal_of(ds.path).exists():
         problems.append(f"an edit (render-obs, split) was stopped while it replaced the files, some old and some "
@@ -203,14 +225,14 @@ def validate(ds: Dataset) -> list[str]:
     except READ_ERRORS as e:
         problems.append(f"the list of demos cannot be read (the file is corrupt: {one_line(e)})")
     total = 0
-    unreadable = set()
+    success: dict[str, bool] = {}  # of each readable demo
     for name in ds.demo_names:
-        found, t = _demo_problems(ds, name)
+        found, t, attrs = _demo_problems(ds, name, keep=keep, visit=visit)
         problems += found
-        if t is None:
-            unreadable.add(name)
-        else:
+        if t is not None:
             total += t
+            success[name] = bool(attrs["success"])
+    unreadable = set(ds.demo_names) - set(success)
     recorded = ds.data_attrs.get("total")
     if not unreadable and isinstance(recorded, int) and recorded != total:
         problems.append(f"data.attrs['total'] is {ds.data_attrs.get('total')}, the demos hold {total} steps")
@@ -231,10 +253,8 @@ def validate(ds: Dataset) -> list[str]:
     problems += [f"{n} is in no mask (train, valid or failed)" for n in ds.demo_names if n not in split_of]
     for key in schema.SPLITS:
         for n in masks.get(key, []):
-            if n in names and n not in unreadable:
-                success = bool(ds.demo(n).attrs["success"])
-                if success != (key != "failed"):
-                    problems.append(f"{n} is in mask/{key} but its success is {success}")
+            if n in success and success[n] != (key != "failed"):
+                problems.append(f"{n} is in mask/{key} but its success is {success[n]}")
     return problems
 
 
@@ -246,13 +266,16 @@ def _is_demo_name(name: str) -> bool:
     return True
 
 
-def require_valid(ds: Dataset, names: list[str] | None = None, *, images: bool = True) -> None:
+def require_valid(ds: Dataset, names: list[str] | None = None, *, images: bool = True, keep: Keep | None = None,
+                  visit: Visit | None = None) -> None:
     """What every tool does before it uses a dataset: DatasetError, one line naming the file and its
     first problem, unless the file is sound. `names`: only these demos (and the file's header and
     masks) must be; None: the whole file, as `gym-fetch info` validates it. `images=False`: demos
-    whose camera images are not rendered yet pass (replay and render-obs do not read them)."""
+    whose camera images are not rendered yet pass (replay and render-obs do not read them). `visit`
+    (with `keep`): each sound demo is handed to it as read for the check (`validate`); the error comes
+    after the whole pass."""
     if names is None:
-        problems = validate(ds)
+        problems = validate(ds, keep, visit)
     else:
         problems = header_problems(ds)
         try:
@@ -260,7 +283,7 @@ def require_valid(ds: Dataset, names: list[str] | None = None, *, images: bool =
         except DatasetError as e:
             problems.append(str(e))
         for name in names:
-            problems += _demo_problems(ds, name, images)[0]
+            problems += _demo_problems(ds, name, images, keep, visit)[0]
     if problems:
         first = one_line(problems[0])
         first = first if first.startswith(str(ds.path)) else f"{ds.path}: {first}"

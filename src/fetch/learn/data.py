@@ -152,30 +152,42 @@ def load_demos(path: str | os.PathLike[str], images: bool = False) -> Demos:
     """The successful demos of a dataset (file or collector directory): `mask/train` to learn from and
     `mask/valid` to validate on; of attempts a person corrected (`--device takeover`), the stretches the
     person drove, failed attempts' too. With `images`, each demo's camera images too (for a pixel
-    policy; they take memory: 21 kB per step and camera at 84 x 84)."""
+    policy; they take memory: 21 kB per step and camera at 84 x 84). The file is checked as every tool
+    checks it (`require_valid`) in the same pass that reads the demos: each demo file is opened once."""
     from fetch.dataset import open_dataset
+    from fetch.dataset.schema import image_key
     from fetch.dataset.validation import require_valid
 
     with open_dataset(path) as ds:
-        require_valid(ds)
         masks = ds.masks()
         for split in ("train", "valid"):
             if split not in masks:
                 raise DatasetError(f"{ds.path} has no mask/{split}; make one with `gym-fetch split {path}`")
-        seeds = frozenset(int(ds.attrs(n)["seed"]) for n in ds.demo_names)
-        # A failed attempt that a person corrected still holds what they did where they drove.
-        corrected = [n for n in masks.get("failed", []) if "intervention" in ds.demo(n)]
         cameras = ds.layout.cameras if images else ()
-        train = _episodes(ds, masks["train"], cameras) + _episodes(ds, corrected, cameras)
-        valid = _episodes(ds, masks["valid"], cameras)
+        wanted = {f"obs/{image_key(c)}" for c in cameras}  # images are most of a demo's bytes: only these are read
+        learnt = set(masks["train"]) | set(masks["valid"]) | set(masks.get("failed", []))
+        layout = layout_of(ds.env_id)
+        seeds: set[int] = set()
+        episodes: dict[str, tuple[Episode, ...]] = {}
+
+        def visit(name: str, attrs: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+            seeds.add(int(attrs["seed"]))
+            # A failed attempt that a person corrected still holds what they did where they drove.
+            if name in learnt and (bool(attrs["success"]) or "intervention" in arrays):
+                episodes[name] = _episodes(name, attrs, arrays, layout, cameras)
+
+        require_valid(ds, keep=wanted.__contains__, visit=visit)
+        corrected = [n for n in masks.get("failed", []) if n in episodes]
+        train = tuple(e for n in [*masks["train"], *corrected] for e in episodes[n])
+        valid = tuple(e for n in masks["valid"] for e in episodes[n])
         env_id, env_kwargs = ds.env_id, dict(ds.env_kwargs)
         where = ds.path.resolve()
         image_size = ds.layout.image_size if cameras else 0
         quality = ds.layout.image_quality if cameras else ""
     if not train:
         raise DatasetError(f"{where}: mask/train lists no demo with a step; a policy needs at least one")
-    return Demos(str(where), env_id, env_kwargs, train, valid, seeds, cameras=cameras, image_size=image_size,
-                 image_quality=quality)
+    return Demos(str(where), env_id, env_kwargs, train, valid, frozenset(seeds), cameras=cameras,
+                 image_size=image_size, image_quality=quality)
 
 
 def load_many(paths: Sequence[str | os.PathLike[str]], correction_weight: int = 1, images: bool = False) -> Demos:
@@ -243,48 +255,35 @@ def learnt_steps(arrays: Mapping[str, np.ndarray], layout: Mapping[str, slice] |
     return ~still
 
 
-def _episodes(ds: object, names: Sequence[str], cameras: Sequence[str] = ()) -> tuple[Episode, ...]:
-    from fetch.dataset.reader import Dataset, runs
+def _episodes(name: str, attrs: Mapping[str, Any], arrays: Mapping[str, np.ndarray],
+              layout: Mapping[str, slice] | None, cameras: Sequence[str]) -> tuple[Episode, ...]:
+    """What a policy learns from one demo (its attributes and arrays, read and checked): the
+    demo's learnt steps, or, of an attempt a person corrected, each stretch they drove; none of a demo of
+    no steps."""
+    from fetch.dataset.reader import runs
     from fetch.dataset.schema import image_key, meant_actions
 
-    assert isinstance(ds, Dataset)
+    if int(attrs["num_samples"]) == 0:
+        return ()
+    keep = learnt_steps(arrays, layout)
+    obs = flat_obs({k: arrays[f"obs/{k}"] for k in OBS_KEYS})
+    # A demo recorded under DART noise learns the expert's clean action, not the perturbed one it executed.
+    actions = meant_actions(arrays)
+    achieved = np.asarray(arrays["obs/achieved_goal"], np.float32)
+    images = {c: arrays[f"obs/{image_key(c)}"] for c in cameras}  # the check made sure every demo has them
+    if "intervention" not in arrays:
+        return (Episode(name, int(attrs["seed"]), obs[keep], actions[keep], achieved[keep],
+                        first_success(arrays["is_success"]), images={c: v[keep] for c, v in images.items()}),)
+    # A corrected attempt teaches what the person did where they drove (HG-DAgger): each stretch is an
+    # episode of its own, so no chunk of targets runs from one correction into the next.
     out = []
-    layout = layout_of(ds.env_id)
-    wanted = {f"obs/{image_key(c)}" for c in cameras}
-
-    def needed(path: str) -> bool:
-        """Images are most of a demo's bytes: only those a pixel policy sees are read."""
-        return not path.endswith(image_key("")) or path in wanted
-
-    for name in names:
-        attrs = ds.attrs(name)
-        if int(attrs["num_samples"]) == 0:
-            continue
-        arrays = ds.arrays(name, needed)
-        keep = learnt_steps(arrays, layout)
-        obs = flat_obs({k: arrays[f"obs/{k}"] for k in OBS_KEYS})
-        # A demo recorded under DART noise learns the expert's clean action, not the perturbed one it executed.
-        actions = meant_actions(arrays)
-        achieved = np.asarray(arrays["obs/achieved_goal"], np.float32)
-        missing = [c for c in cameras if f"obs/{image_key(c)}" not in arrays]
-        if missing:
-            raise DatasetError(f"{ds.path}: {name} has no images of {', '.join(missing)}; render them with "
-                               f"`gym-fetch render-obs {ds.path} --camera {missing[0]} --size {ds.layout.image_size}`")
-        images = {c: arrays[f"obs/{image_key(c)}"] for c in cameras}
-        if "intervention" in arrays:
-            # A corrected attempt teaches what the person did where they drove (HG-DAgger): each stretch
-            # is an episode of its own, so no chunk of targets runs from one correction into the next.
-            for i, (a, b) in enumerate(runs(arrays["intervention"])):
-                b = _let_go(arrays["actions"], a, b)
-                mine = np.zeros(len(keep), bool)
-                mine[a:b] = keep[a:b]
-                if mine.any():
-                    out.append(Episode(f"{name} (takeover {i + 1})", int(attrs["seed"]), obs[mine], actions[mine],
-                                       achieved[mine], None, corrected=True,
-                                       images={c: v[mine] for c, v in images.items()}))
-            continue
-        out.append(Episode(name, int(attrs["seed"]), obs[keep], actions[keep], achieved[keep],
-                           first_success(arrays["is_success"]), images={c: v[keep] for c, v in images.items()}))
+    for i, (a, b) in enumerate(runs(arrays["intervention"])):
+        b = _let_go(arrays["actions"], a, b)
+        mine = np.zeros(len(keep), bool)
+        mine[a:b] = keep[a:b]
+        if mine.any():
+            out.append(Episode(f"{name} (takeover {i + 1})", int(attrs["seed"]), obs[mine], actions[mine],
+                               achieved[mine], None, corrected=True, images={c: v[mine] for c, v in images.items()}))
     return tuple(out)
 
 
