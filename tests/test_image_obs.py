@@ -190,11 +190,12 @@ def test_check_env_and_pickling_with_cameras() -> None:
     env.close()
 
 
-@pytest.mark.parametrize("num_envs", [1, 3])
+@pytest.mark.parametrize("num_envs", [1, 3, 9])
 def test_the_vector_env_s_images_are_each_world_s_single_env_images(num_envs: int) -> None:
-    """Bit for bit as a SyncVectorEnv of `gym.make` envs with the same cameras, through an autoreset."""
+    """Bit for bit as a SyncVectorEnv of `gym.make` envs with the same cameras, through an autoreset; 9 worlds
+    on 3 threads: the template renders some and two helper threads the others, each in its own GL context."""
     kwargs = {"cameras": TWO, "image_size": 32}
-    vec = fetch.make_vec("PickPlace-v2", num_envs, max_episode_steps=2, **kwargs)
+    vec = fetch.make_vec("PickPlace-v2", num_envs, max_episode_steps=2, nthread=3, **kwargs)
     sync = SyncVectorEnv([lambda: gym.make("PickPlace-v2", max_episode_steps=2, **kwargs)] * num_envs)
     assert vec.single_observation_space == sync.single_observation_space
     assert vec.observation_space["wrist_image"] == gym.spaces.Box(0, 255, (num_envs, 32, 32, 3), np.uint8)
@@ -219,3 +220,18 @@ def test_the_vector_env_releases_its_renderer_on_close(monkeypatch: pytest.Monke
     assert len(spy.made) == 1  # one renderer, in the template, renders every world
     vec.close()
     assert spy.closed == 1
+
+
+def test_the_vector_env_s_render_threads_are_released_on_close(monkeypatch: pytest.MonkeyPatch) -> None:
+    """8 worlds on 2 threads: the template's renderer and one helper thread's, both released by close."""
+    import threading
+
+    spy = Spy(monkeypatch)
+    vec = fetch.make_vec("Reach-v2", 8, nthread=2, cameras=("front",), image_size=32)
+    vec.reset(seed=0)
+    vec.step(np.zeros((8, 4)))
+    assert len(spy.made) == 2
+    assert any(t.name.startswith("fetch-render") for t in threading.enumerate())
+    vec.close()
+    assert spy.closed == 2
+    assert not any(t.name.startswith("fetch-render") for t in threading.enumerate())
