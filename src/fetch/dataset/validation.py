@@ -123,9 +123,6 @@ def _demo_problems(ds: Dataset, name: str, images: bool = True, keep: Keep | Non
         arrays: dict[str, Any] = {p: node if _is_image(p) and (visit is None or keep is None or not keep(p))
                                   else node[()] for p, node in nodes.items()}
         problems = _content_problems(ds, name, attrs, arrays, t, images)
-        if visit is not None and not problems:
-            visit(name, attrs, {p: a for p, a in arrays.items() if isinstance(a, np.ndarray)})
-        return problems, t, attrs
     except READ_ERRORS as e:
         try:
             file, _ = ds.demo_file(name)
@@ -133,6 +130,9 @@ def _demo_problems(ds: Dataset, name: str, images: bool = True, keep: Keep | Non
             file = ds.path
         where = file.relative_to(ds.path.parent) if file.is_relative_to(ds.path.parent) else file
         return [f"{name} cannot be read (its file {where} is corrupt: {one_line(e)})"], None, {}
+    if visit is not None and not problems:  # outside the reading's `try`: the visitor's own errors are its own
+        visit(name, attrs, {p: a for p, a in arrays.items() if isinstance(a, np.ndarray)})
+    return problems, t, attrs
 
 
 def _content_problems(ds: Dataset, name: str, attrs: dict[str, Any], arrays: dict[str, Any], t: int,
