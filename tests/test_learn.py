@@ -180,11 +180,11 @@ def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reac
     env.close()
 
 
-@pytest.mark.parametrize(("setting", "before"), [("members", 1), ("goal_offsets", False)])
+@pytest.mark.parametrize(("setting", "before"), [("members", 1), ("goal_offsets", False), ("finger_scale", 0.0)])
 def test_a_checkpoint_from_before_a_setting_existed_loads_as_it_was(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
                                                                    setting: str, before: object) -> None:
-    """Runs trained before ensembles or goal offsets existed store no such setting: they load as one
-    network that sees what it saw, and act."""
+    """Runs trained before ensembles, goal offsets or the fingers' companded action existed store no such
+    setting: they load as one network that sees what it saw and acts as it learnt, and act."""
     from fetch.learn.runtime import load
 
     assert _train(reach, tmp_path / "run", "--steps", "20") == 0
@@ -288,6 +288,21 @@ def test_eval_writes_videos(torch, reach: pathlib.Path, tmp_path) -> None:  # no
     (path,) = (tmp_path / "videos").glob("*.mp4")
     frames, fps = read_video(path)
     assert path.name == "Reach-v2_seed1000000.mp4" and len(frames) == 51 and fps == 25
+
+
+def test_the_fingers_action_is_learnt_companded_and_acted_as_recorded() -> None:
+    """The fingers' servo range (+-finger_scale) spans [-1, 1], the squeeze (-1) goes to -2, the hand's
+    three numbers are left as they are, and acting undoes it exactly; finger_scale 0 leaves actions alone."""
+    from fetch.learn.data import acted_actions, learnt_actions
+    from fetch.learn.kinds import FINGER_SCALE
+
+    a = np.array([[0.3, -0.7, 1.0, a3] for a3 in (-1.0, -0.05, -0.02, 0.0, 0.01, 0.05, 0.5, 1.0)], np.float32)
+    learnt = learnt_actions(a, FINGER_SCALE)
+    np.testing.assert_array_equal(learnt[:, :3], a[:, :3])
+    np.testing.assert_allclose(learnt[:, 3], [-2.0, -1.0, -0.4, 0.0, 0.2, 1.0, 1.0 + 0.45 / 0.95, 2.0], atol=1e-6)
+    assert np.all(np.diff(learnt[:, 3]) > 0)  # order kept: a policy's mean of two is between them
+    np.testing.assert_allclose(acted_actions(learnt, FINGER_SCALE), a, atol=1e-6)
+    assert learnt_actions(a, 0.0) is a and acted_actions(a, 0.0) is a
 
 
 def test_eval_seeds_skip_the_excluded_ones() -> None:

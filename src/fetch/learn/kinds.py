@@ -65,6 +65,11 @@ def kind(name: str) -> PolicyKind:
 
 
 LOSSES = ("l1", "mse")
+FINGER_SCALE = 0.05
+"""[a[3] units, m of finger target] what `PolicySettings.finger_scale` is unless told: a finger's travel. The
+fingers' servo values (`Expert.finger_servo`: the opening wanted less the opening now) lie within it; the
+squeeze, -1, beyond. Learnt as recorded, the servo's few hundredths were lost beside the squeeze and the
+hand's +-1: on Bin-pick (100 expert demos, gru) 83 % as recorded, 99 % companded (docs/training.md)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,6 +98,9 @@ class PolicySettings:
     robot's own readings and the goal (`data.unseen_by_pixels`)."""
     cameras: tuple[str, ...] = ()
     """pixel policies: the cameras whose images it sees, in this order (the dataset's `<camera>_image`)."""
+    finger_scale: float = FINGER_SCALE
+    """the fingers' action a[3] is learnt companded (`data.learnt_actions`): |a[3]| up to this spans [-1, 1]
+    and the rest of [-1, 1] the rest; 0: as recorded (runs saved before it existed)."""
 
     def __post_init__(self) -> None:
         kind(self.kind)
@@ -116,6 +124,8 @@ class PolicySettings:
             raise FetchError(f"cameras must be distinct camera names, got {list(self.cameras)}")
         if not all(isinstance(i, int) and i >= 0 for i in self.blind):
             raise FetchError(f"blind must list input entries (whole numbers >= 0), got {list(self.blind)}")
+        if isinstance(self.finger_scale, bool) or not 0.0 <= self.finger_scale < 1.0:
+            raise FetchError(f"finger_scale must be at least 0 and below 1, got {self.finger_scale!r}")
         if not self.ensemble_decay >= 0:
             raise FetchError(f"ensemble_decay must be >= 0, got {self.ensemble_decay!r}")
 
@@ -154,9 +164,11 @@ class PolicyConfig(PolicySettings):
     @staticmethod
     def upgraded(raw: Mapping[str, Any]) -> dict[str, Any]:
         """A checkpoint's policy settings as they are now: a pixel policy saved before the image quality was
-        recorded learnt from "full" images (the only kind there was)."""
+        recorded learnt from "full" images (the only kind there was), and a policy saved before
+        `finger_scale` learnt the fingers' action as recorded."""
+        raw = {"finger_scale": 0.0, **raw}
         if "image_quality" in raw:
-            return dict(raw)
+            return raw
         return {**raw, "image_quality": "full" if raw.get("cameras") else ""}
 
     @classmethod

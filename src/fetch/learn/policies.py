@@ -21,7 +21,7 @@ from torch import nn
 
 from fetch._references import resolve
 from fetch.errors import FetchError
-from fetch.learn.data import Episode, chunk_targets, policy_inputs
+from fetch.learn.data import Episode, chunk_targets, learnt_actions, policy_inputs
 from fetch.learn.kinds import PolicyConfig, kind
 
 ACTION_SIZE = 4
@@ -131,7 +131,8 @@ def samples(config: PolicyConfig, episodes: Sequence[Episode], normalize: Any) -
     kind_ = implementation(config.kind)
     xs, ys, ms = [], [], []
     for e in episodes:
-        x, y, m = kind_.examples(config, normalize(policy_inputs(e, config.goal_offsets, config.blind)), e.actions)
+        x, y, m = kind_.examples(config, normalize(policy_inputs(e, config.goal_offsets, config.blind)),
+                                 learnt_actions(e.actions, config.finger_scale))
         xs.append(x)
         ys.append(y)
         ms.append(m)

@@ -13,7 +13,7 @@ import torch
 from fetch.camera_obs import image_key
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
-from fetch.learn.data import Normalizer, flat_obs
+from fetch.learn.data import Normalizer, acted_actions, flat_obs
 from fetch.learn.kinds import PolicyConfig
 from fetch.learn.policies import build, implementation
 from fetch.tasks import registered_horizon
@@ -70,7 +70,7 @@ class Policy:
         images = [torch.from_numpy(self._image(obs, key, single)) for key in self.image_keys]
         with torch.no_grad():
             action = self._actor(torch.from_numpy(x), *images)
-        action = np.clip(action, -1.0, 1.0).astype(np.float32)
+        action = np.clip(acted_actions(action, self.config.finger_scale), -1.0, 1.0).astype(np.float32)
         return action[0] if single else action
 
     def _image(self, obs: Mapping[str, np.ndarray], key: str, single: bool) -> np.ndarray:

@@ -73,7 +73,8 @@ class TrainConfig:
                                  f"{'> 0' if name == 'lr' else '>= 0'}, got {value!r}")
 
 
-POLICY_FLAGS = ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets", "velocities", "cameras")
+POLICY_FLAGS = ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets", "velocities", "cameras",
+                "finger_scale")
 """The `TrainRequest` fields that shape the policy (a run gone on from keeps its own)."""
 
 
@@ -95,6 +96,8 @@ class TrainRequest:
     """passes over the training examples, instead of `steps`."""
     chunk: int | None = None
     seq_len: int | None = None
+    finger_scale: float | None = None
+    """None: `kinds.FINGER_SCALE`; 0 learns the fingers' action as recorded."""
     hidden: int | None = None
     layers: int | None = None
     members: int | None = None
