@@ -122,7 +122,7 @@ def test_resuming_with_other_settings_is_refused(torch, reach: pathlib.Path, tmp
 
 def test_temporal_ensembling_averages_every_chunk_prediction_for_this_step(torch, reach: pathlib.Path,
                                                                            tmp_path) -> None:  # noqa: ANN001
-    from fetch.learn.data import flat_obs
+    from fetch.learn.data import acted_actions, flat_obs
     from fetch.learn.runtime import load
 
     assert _train(reach, tmp_path / "run", "--policy", "mlp-chunk", "--steps", "50", "--chunk", "3") == 0
@@ -142,13 +142,14 @@ def test_temporal_ensembling_averages_every_chunk_prediction_for_this_step(torch
         made = list(range(max(0, t - 2), t + 1))  # the chunks that predict step t, oldest first
         weights = np.exp(-decay * np.arange(len(made)))
         expected = sum(w * chunks[s][t - s] for w, s in zip(weights, made, strict=True)) / weights.sum()
-        np.testing.assert_allclose(acted[t], np.clip(expected, -1, 1), atol=1e-5)
+        np.testing.assert_allclose(acted[t], np.clip(acted_actions(expected, policy.config.finger_scale), -1, 1),
+                                   atol=1e-5)
 
 
 @pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])
 def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reach: pathlib.Path, tmp_path,
                                                                      kind: str) -> None:  # noqa: ANN001
-    from fetch.learn.data import flat_obs
+    from fetch.learn.data import acted_actions, flat_obs
     from fetch.learn.kinds import PolicyConfig
     from fetch.learn.policies import build
     from fetch.learn.runtime import load
@@ -176,7 +177,8 @@ def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reac
             each = [net.step(x[:, None, :], None)[0][0, 0].numpy() for net in members]
         else:
             each = [net(x)[0, 0].numpy() for net in members]  # the first action of each member's chunk
-    np.testing.assert_allclose(policy(obs), np.clip(np.mean(each, axis=0), -1, 1), atol=1e-5)
+    mean = acted_actions(np.mean(each, axis=0), policy.config.finger_scale)  # the fingers' a[3] as acted
+    np.testing.assert_allclose(policy(obs), np.clip(mean, -1, 1), atol=1e-5)
     env.close()
 
 
@@ -203,7 +205,7 @@ def test_a_checkpoint_from_before_a_setting_existed_loads_as_it_was(torch, reach
 @pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])
 def test_a_policy_with_goal_offsets_sees_the_goal_relative_to_the_achieved_goal_and_the_hand(
         torch, reach: pathlib.Path, tmp_path, kind: str) -> None:  # noqa: ANN001
-    from fetch.learn.data import flat_obs
+    from fetch.learn.data import acted_actions, flat_obs
     from fetch.learn.runtime import load
 
     assert _train(reach, tmp_path / "plain", "--policy", kind, "--steps", "20") == 0
@@ -221,7 +223,8 @@ def test_a_policy_with_goal_offsets_sees_the_goal_relative_to_the_achieved_goal_
         net = torch.from_numpy(policy.normalizer(x)[None])
         expected = (policy.model.step(net[:, None, :], None)[0][0, 0] if kind == "gru" else policy.model(net)[0, 0])
     policy.reset()
-    np.testing.assert_allclose(policy(obs), np.clip(expected.numpy(), -1, 1), atol=1e-5)
+    expected = acted_actions(expected.numpy(), policy.config.finger_scale)  # the fingers' a[3] as acted
+    np.testing.assert_allclose(policy(obs), np.clip(expected, -1, 1), atol=1e-5)
     env.close()
 
 

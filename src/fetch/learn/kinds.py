@@ -47,7 +47,8 @@ KINDS: tuple[PolicyKind, ...] = (
                implementation="fetch.learn.policies:CHUNKED"),
     PolicyKind("cnn-chunk", "sees camera images (a small convolutional encoder per camera, trained from scratch on "
                "randomly shifted images), the robot's own readings and the goal, not the objects' state; predicts "
-               "chunks of actions as mlp-chunk", own=("chunk", "ensemble_decay", "cameras"), defaults={},
+               "chunks of actions as mlp-chunk", own=("chunk", "ensemble_decay", "cameras"),
+               defaults={"finger_scale": 0.0},  # its missions were measured with the fingers as recorded
                implementation="fetch.learn.pixels:PIXEL_CHUNK", inputs="pixels",
                # convolutions over images: a quarter of the batch, and every core (docs/training.md)
                training={"steps": 6000, "batch_size": 64, "threads": 0, "precision": "auto"}),
@@ -69,7 +70,8 @@ FINGER_SCALE = 0.05
 """[a[3] units, m of finger target] what `PolicySettings.finger_scale` is unless told: a finger's travel. The
 fingers' servo values (`Expert.finger_servo`: the opening wanted less the opening now) lie within it; the
 squeeze, -1, beyond. Learnt as recorded, the servo's few hundredths were lost beside the squeeze and the
-hand's +-1: on Bin-pick (100 expert demos, gru) 83 % as recorded, 99 % companded (docs/training.md)."""
+hand's +-1: on Bin-pick (100 expert demos, gru) 83 % as recorded, 99 % companded (docs/training.md). The
+pixel kind keeps 0 (as recorded) until its missions are measured companded."""
 
 
 @dataclasses.dataclass(frozen=True)
