@@ -70,7 +70,7 @@ FINGER_SCALE = 0.05
 """[a[3] units, m of finger target] what `PolicySettings.finger_scale` is unless told: a finger's travel. The
 fingers' servo values (`Expert.finger_servo`: the opening wanted less the opening now) lie within it; the
 squeeze, -1, beyond. Learnt as recorded, the servo's few hundredths were lost beside the squeeze and the
-hand's +-1: on Bin-pick (100 expert demos, gru) 83 % as recorded, 99 % companded (docs/training.md). The
+hand's +-1: on Bin-pick (100 DART expert demos, gru) 74 % as recorded, 98 % companded (docs/training.md). The
 pixel kind keeps 0 (as recorded) until its missions are measured companded."""
 
 
