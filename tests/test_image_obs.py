@@ -223,15 +223,17 @@ def test_the_vector_env_releases_its_renderer_on_close(monkeypatch: pytest.Monke
 
 
 def test_the_vector_env_s_render_threads_are_released_on_close(monkeypatch: pytest.MonkeyPatch) -> None:
-    """8 worlds on 2 threads: the template's renderer and one helper thread's, both released by close."""
+    """8 worlds on 2 threads: the template's renderer and one helper thread's, both released by close. (Where
+    mujoco has no `mujoco.batch`, before 4.0, the worlds step on one thread and the template draws them all.)"""
     import threading
 
     spy = Spy(monkeypatch)
     vec = fetch.make_vec("Reach-v2", 8, nthread=2, cameras=("front",), image_size=32)
     vec.reset(seed=0)
     vec.step(np.zeros((8, 4)))
-    assert len(spy.made) == 2
-    assert any(t.name.startswith("fetch-render") for t in threading.enumerate())
+    threads = vec.nthread  # type: ignore[attr-defined]  # 2, or 1 without mujoco.batch
+    assert len(spy.made) == threads
+    assert any(t.name.startswith("fetch-render") for t in threading.enumerate()) == (threads > 1)
     vec.close()
-    assert spy.closed == 2
+    assert spy.closed == threads
     assert not any(t.name.startswith("fetch-render") for t in threading.enumerate())
