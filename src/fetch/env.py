@@ -373,17 +373,9 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                                      depth=self.render_mode == "depth_array", hide_goal=self.hide_goal)
 
     def images(self, states: np.ndarray, threads: int = 1) -> dict[str, np.ndarray]:
-        """(N, H, W, 3) uint8 images per camera of N states of `get_state` ({} without `cameras`), as the
-        observations of those states hold them, drawn on up to `threads` threads (`CameraImages.render_states`).
-        The env is left in the last state."""
-        if self._images is None:
-            return {}
-        return self._images.render_states(states, self.set_state, self.data, self._put_state, threads)
-
-    def _put_state(self, data: mujoco.MjData, state: np.ndarray) -> None:
-        """Put a `get_state` state into `data` (another MjData of this model) with its kinematics, to draw it."""
-        mujoco.mj_setState(self.model, data, np.asarray(state, dtype=np.float64), STATE_SPEC)
-        mujoco.mj_forward(self.model, data)
+        """Per camera, the images of N `get_state` states, as observations hold them; the env ends in the last."""
+        cams = self._images
+        return cams.render_states(states, self.set_state, self.data, STATE_SPEC, threads) if cams else {}
 
     def close(self) -> None:
         if self._images is not None:

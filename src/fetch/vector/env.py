@@ -321,8 +321,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
             worlds.state[ids] = rows
         goals = layout.view(rows, "mocap_pos")[:, self._goal_mocap].copy()
         obs, rewards, info = self._observe(worlds.sensordata[sel], goals, layout.view(rows, "qpos"))
-        # Images: the template renders each world, on as many threads as step the worlds.
-        return {**obs, **self._env.images(rows, self.nthread)}, rewards, info
+        return {**obs, **self._env.images(rows, self.nthread)}, rewards, info  # the template's, on nthread threads
 
     def _step_one(self, action: np.ndarray) -> tuple[Obs, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """`step` of one world: nothing to spread over threads, and numpy's cost per call exceeds
