@@ -16,7 +16,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("fetch.robot",),
     ("fetch.scene",),
     ("fetch.observation", "fetch.tasks"),
-    ("fetch.rendering", "fetch.camera_obs", "fetch.env", "fetch"),
+    ("fetch.looks", "fetch.rendering", "fetch.camera_obs", "fetch.compiled", "fetch.env", "fetch"),
     ("fetch.vector",),
     ("fetch.dataset", "fetch.experts"),
     ("fetch.generate",),

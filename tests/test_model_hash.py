@@ -11,8 +11,7 @@ import gymnasium as gym
 import h5py
 import pytest
 
-from fetch import env as env_module
-from fetch import scene
+from fetch import compiled, scene
 from fetch.cli import main
 from fetch.dataset import open_dataset
 
@@ -22,11 +21,11 @@ ENV_ID = "Reach-v2"
 @pytest.fixture
 def fresh_compile() -> Iterator[None]:
     """Scenes compiled in the test are not left in the process-wide caches."""
-    env_module._compile.cache_clear()
-    env_module._portable_hash.cache_clear()
+    compiled.compiled_task.cache_clear()
+    compiled.portable_hash.cache_clear()
     yield
-    env_module._compile.cache_clear()
-    env_module._portable_hash.cache_clear()
+    compiled.compiled_task.cache_clear()
+    compiled.portable_hash.cache_clear()
 
 
 def collect(out: pathlib.Path) -> None:
@@ -48,10 +47,10 @@ def test_the_same_model_installed_elsewhere_has_the_same_hash(tmp_path: pathlib.
     for part in ("fetch", "stls/fetch", "textures"):
         shutil.copytree(scene.robot_asset_dir() / part, elsewhere / part)
     monkeypatch.setattr(scene, "robot_asset_dir", lambda: elsewhere)
-    env_module._compile.cache_clear()
-    env_module._portable_hash.cache_clear()
+    compiled.compiled_task.cache_clear()
+    compiled.portable_hash.cache_clear()
     there = gym.make(ENV_ID).unwrapped
-    spec = env_module._compile(type(there.task)).spec
+    spec = compiled.compiled_task(type(there.task)).spec
     assert spec.meshdir.startswith(str(elsewhere)), "the scene was not built from the copy"
     if str(elsewhere) in there.model.paths.decode():  # mujoco 4.0 keeps the files' paths in the model, 3.3 did not
         assert there.legacy_model_hash() != legacy, "the old hash depended on the install path"

@@ -19,7 +19,7 @@ import sys
 import numpy as np
 
 from benchmarks.parity_v4 import PAIRS
-from fetch.env import CLASSIC_STARTS
+from fetch.compiled import CLASSIC_STARTS
 
 
 def record_starts(path: pathlib.Path) -> None:

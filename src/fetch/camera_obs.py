@@ -11,6 +11,7 @@ import numpy as np
 
 from fetch import rendering
 from fetch.errors import FetchError
+from fetch.looks import Looks
 
 DEFAULT_IMAGE_SIZE = 84
 """[px] the side of an observation image when `image_size` is not given (robomimic's and DrQ's 84 x 84)."""
@@ -57,31 +58,37 @@ class CameraImages:
         shape = (self.size, self.size, 3)
         return {key: gym.spaces.Box(0, 255, shape, np.uint8) for key in self.keys}
 
-    def render(self, data: mujoco.MjData) -> dict[str, np.ndarray]:
-        """Each camera's image of `data` as it is now (its kinematics current), a fresh array each."""
+    def render(self, data: mujoco.MjData, looks: Looks | None = None) -> dict[str, np.ndarray]:
+        """Each camera's image of `data` as it is now (its kinematics current), a fresh array each, drawn
+        with `looks` where given."""
         if self.renderer is None:
             self.renderer = rendering.OffscreenRenderer(self.model, self.size, self.size, self.quality)
         renderer = self.renderer
-        return {key: renderer.render(data, camera, hide_goal=self.hide_goal)
+        return {key: renderer.render(data, camera, hide_goal=self.hide_goal, looks=looks)
                 for key, camera in zip(self.keys, self.cameras, strict=True)}
 
     def render_states(self, states: np.ndarray, restore: Callable[[np.ndarray], None], data: mujoco.MjData,
-                      spec: int | None = None, threads: int = 1) -> dict[str, np.ndarray]:
+                      spec: int | None = None, threads: int = 1,
+                      looks: Sequence[Looks | None] | None = None) -> dict[str, np.ndarray]:
         """(N, size, size, 3) images per camera of N states, each put into `data` by `restore(state)`, the last
         one last. With `threads` > 1 (and `spec`, the `mjtState` the states were saved with), the
         first states are shared out to up to `threads - 1` helper threads, each rendering into its own MjData
         with its own GL context: MuJoCo lets go of Python's lock while it draws, so on a software renderer
-        two threads draw 1.6x the frames of one (Bin-place, 84 x 84, 2 cores). The images are the same."""
+        two threads draw 1.6x the frames of one (Bin-place, 84 x 84, 2 cores). The images are the same.
+        `looks`: each state's (`fetch.looks`; None, or a None in it: as modelled)."""
+        each: list[Looks | None] = list(looks) if looks is not None else [None] * len(states)
+        if len(each) != len(states):
+            raise ValueError(f"{len(states)} states but {len(each)} looks")
         out = {key: np.empty((len(states), self.size, self.size, 3), np.uint8) for key in self.keys}
         if self.renderer is None:  # made before the helpers' (a renderer's making sets the model's buffer size)
             self.renderer = rendering.OffscreenRenderer(self.model, self.size, self.size, self.quality)
         shared = min(threads, len(states) // HELPER_MIN_STATES + 1) - 1 if spec is not None else 0
         parts = np.array_split(np.arange(len(states)), shared + 1)
-        pending = [helper.render(states, index, spec, out)
+        pending = [helper.render(states, index, spec, out, each)
                    for helper, index in zip(self._helpers(shared), parts[:-1], strict=True) if spec is not None]
         for i in parts[-1]:
             restore(states[i])
-            for key, image in self.render(data).items():
+            for key, image in self.render(data, each[i]).items():
                 out[key][i] = image
         for done in pending:
             done.result()
@@ -121,18 +128,19 @@ class _Helper:
         i = self.images
         self.renderer = rendering.OffscreenRenderer(i.model, i.size, i.size, i.quality)
 
-    def render(self, states: np.ndarray, index: np.ndarray, spec: int,
-               out: dict[str, np.ndarray]) -> concurrent.futures.Future[None]:
-        return self.thread.submit(self._render, states, index, spec, out)
+    def render(self, states: np.ndarray, index: np.ndarray, spec: int, out: dict[str, np.ndarray],
+               looks: list[Looks | None]) -> concurrent.futures.Future[None]:
+        return self.thread.submit(self._render, states, index, spec, out, looks)
 
-    def _render(self, states: np.ndarray, index: np.ndarray, spec: int, out: dict[str, np.ndarray]) -> None:
+    def _render(self, states: np.ndarray, index: np.ndarray, spec: int, out: dict[str, np.ndarray],
+                looks: list[Looks | None]) -> None:
         assert self.renderer is not None
         i = self.images
         for row in index:  # the state and its kinematics, in this thread's own MjData
             mujoco.mj_setState(i.model, self.data, np.asarray(states[row], np.float64), spec)
             mujoco.mj_forward(i.model, self.data)
             for key, camera in zip(i.keys, i.cameras, strict=True):
-                out[key][row] = self.renderer.render(self.data, camera, hide_goal=i.hide_goal)
+                out[key][row] = self.renderer.render(self.data, camera, hide_goal=i.hide_goal, looks=looks[row])
 
     def close(self) -> None:
         def stop() -> None:

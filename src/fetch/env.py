@@ -3,11 +3,8 @@
 from __future__ import annotations
 
 import copy
-import dataclasses
 import functools
-import hashlib
 import math
-import pathlib
 from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple, SupportsFloat
 
@@ -18,117 +15,16 @@ from gymnasium.error import ResetNeeded
 
 from fetch import camera_obs, rendering
 from fetch import observation as ob
+from fetch.compiled import STATE_SPEC, compiled_task, mjb_hash, portable_hash
 from fetch.errors import FetchError, UnknownNameError
-from fetch.robot import GRIPPER_QUAT, Robot, action_rule, checked_actions
-from fetch.scene import build_spec, firm_furniture
+from fetch.looks import Looks, check_looks
+from fetch.robot import Robot, action_rule, checked_actions
 from fetch.tasks import mirroring_ids, task_class
-from fetch.tasks.base import FINGER_PAIRS, REWARD_TYPES, Start, Task, goal_distance, mocap_index
+from fetch.tasks.base import FINGER_PAIRS, REWARD_TYPES, Task, goal_distance, mocap_index
 from fetch.tasks.base import reward as task_reward
-from fetch.timing import CONTROL_DT, N_SUBSTEPS
-
-STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
-"""What `get_state` saves: everything `mj_step` reads (qpos, qvel, act, ctrl, mocap, warm start, time)."""
+from fetch.timing import CONTROL_DT
 
 RENDER_MODES = ("human", "rgb_array", "depth_array")
-SETTLE_STEPS = 50
-"""Control steps the arm is given at construction to settle at its start pose."""
-
-
-@dataclasses.dataclass(frozen=True)
-class _Compiled:
-    model: mujoco.MjModel
-    start_state: np.ndarray
-    start: Start
-    spec: mujoco.MjSpec
-
-
-def _mjb_hash(model: mujoco.MjModel) -> str:
-    buffer = np.empty(mujoco.mj_sizeModel(model), np.uint8)
-    mujoco.mj_saveModel(model, None, buffer)
-    return hashlib.sha256(buffer.tobytes()).hexdigest()
-
-
-@functools.cache
-def _portable_hash(task_type: type[Task]) -> str:
-    """`_mjb_hash` of the task's model compiled again with its asset files handed over by relative
-    name (in memory), so that no absolute path ends up in it."""
-    spec = _compile(task_type).spec.copy()
-    assets: dict[str, bytes] = {}
-    for kind, directory, items in (("meshes", spec.meshdir, spec.meshes), ("textures", spec.texturedir, spec.textures)):
-        for item in items:
-            if not item.file:
-                continue
-            path = pathlib.Path(item.file)
-            relative = pathlib.Path(path.name) if path.is_absolute() else path
-            source = path if path.is_absolute() else pathlib.Path(directory) / path
-            assets[f"{kind}/{relative.as_posix()}"] = source.read_bytes()
-            item.file = relative.as_posix()
-    spec.meshdir, spec.texturedir = "meshes", "textures"
-    spec.modelfiledir = ""  # a scene read from a file resolves relative names against its directory
-    spec.assets = assets
-    return _mjb_hash(spec.compile())
-
-
-@functools.cache
-def _compile(task_type: type[Task]) -> _Compiled:
-    """Build, compile and settle a task's scene once per process; envs copy the result."""
-    task = task_type()
-    spec = build_spec(task_type.robot)
-    task.build(spec)
-    if task_type.firm_furniture:
-        firm_furniture(spec)
-    ob.add_sensors(spec, task_type.parts)
-    model = spec.compile()
-    data = mujoco.MjData(model)
-    robot = Robot(task_type.robot, model)
-    robot.bind(data)
-    task.bind(model)
-    if task_type.robot.scene:
-        start = _settle_classic(model, data, robot, task)
-    else:
-        start = _settle_room(model, data, robot)
-    state = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
-    mujoco.mj_getState(model, data, state, STATE_SPEC)
-    return _Compiled(model, state, start, spec)
-
-
-CLASSIC_STARTS = pathlib.Path(__file__).parent / "assets" / "classic_starts.npz"
-"""The start state of each classic scene as gymnasium-robotics' Fetch*-v4 computes it on mujoco 3.11
-(`python -m tools.classic_starts` writes it, in the mujoco 3.11 virtualenv: tools/classic_starts.py)."""
-
-
-def _settle_classic(model: mujoco.MjModel, data: mujoco.MjData, robot: Robot, task: Task) -> Start:
-    """The classic suite's start state, as that suite computes it when an env is made: the base and
-    object parked by `initial_qpos`, then the hand pulled to its start for 10 control steps, the
-    state reached kept, velocities included. It is loaded, not simulated again: on other mujoco
-    versions those 10 steps (the base resting on the floor, the torso below its joint limit) end
-    up to 0.3 mm elsewhere, and the classic start is the one that its seeds' goals were drawn around."""
-    scene = str(task.robot.scene)
-    with np.load(CLASSIC_STARTS) as starts:
-        qpos, qvel = starts[f"{scene}/qpos"], starts[f"{scene}/qvel"]
-        time, grip = float(starts[f"{scene}/time"]), starts[f"{scene}/grip"]
-        object_z = float(starts[f"{scene}/object_z"])
-    if qpos.shape != (model.nq,) or qvel.shape != (model.nv,):
-        raise FetchError(f"{CLASSIC_STARTS.name} holds a {scene} start of {qpos.size} qpos / {qvel.size} qvel; "
-                         f"the model has {model.nq} / {model.nv} (a different gymnasium-robotics?)")
-    data.time, data.qpos[:], data.qvel[:] = time, qpos, qvel
-    mujoco.mj_forward(model, data)
-    robot.hold()
-    return Start(grip.copy(), None if math.isnan(object_z) else object_z)
-
-
-def _settle_room(model: mujoco.MjModel, data: mujoco.MjData, robot: Robot) -> Start:
-    """Our tasks' start: the hand pulled to its start for 50 control steps, then everything at rest."""
-    mujoco.mj_forward(model, data)
-    data.mocap_pos[robot.mocap] = robot.start_target(model, data)
-    data.mocap_quat[robot.mocap] = GRIPPER_QUAT
-    for _ in range(SETTLE_STEPS):
-        mujoco.mj_step(model, data, nstep=N_SUBSTEPS)
-    data.qvel[:] = 0.0
-    data.time = 0.0
-    mujoco.mj_forward(model, data)
-    robot.hold()
-    return Start(data.site_xpos[robot.grip_site].copy(), None)
 
 
 class Reflection(NamedTuple):
@@ -148,7 +44,9 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     `model`, `data` are the MjModel / MjData; `observation_layout` names the observation's slices.
     `cameras` adds each camera's `image_size` x `image_size` uint8 RGB image of the observed state to the
     observation, as "<camera>_image" (camera_obs.py; `hide_goal` hides the marker there too), drawn at
-    `image_quality` (`rendering.IMAGE_QUALITIES`: "fast", the default, or "full").
+    `image_quality` (`rendering.IMAGE_QUALITIES`: "fast", the default, or "full"). `looks="random"` draws
+    each episode's colours, lights and camera mounts from its reset seed (`fetch.looks`; the physics
+    is untouched); "plain", the default, draws the scene as modelled.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": round(1.0 / CONTROL_DT)}
@@ -157,7 +55,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                  render_mode: str | None = None, width: int = 480, height: int = 480,
                  camera_name: str = "front", hide_goal: bool = False, cameras: Sequence[str] = (),
                  image_size: int = camera_obs.DEFAULT_IMAGE_SIZE,
-                 image_quality: str = rendering.DEFAULT_IMAGE_QUALITY) -> None:
+                 image_quality: str = rendering.DEFAULT_IMAGE_QUALITY, looks: str = "plain") -> None:
         if reward_type not in REWARD_TYPES:
             raise UnknownNameError("reward_type", reward_type, REWARD_TYPES)
         if render_mode is not None and render_mode not in RENDER_MODES:
@@ -167,8 +65,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._kwargs = dict(task=task, reward_type=reward_type, render_mode=render_mode,
                             width=int(width), height=int(height), camera_name=camera_name,
                             hide_goal=hide_goal, cameras=cameras, image_size=image_size,
-                            image_quality=image_quality)
-        compiled = _compile(task_class(task))
+                            image_quality=image_quality, looks=check_looks(looks))
+        compiled = compiled_task(task_class(task))
         self.task: Task = task_class(task)()
         self.model: mujoco.MjModel = copy.copy(compiled.model)
         self.data = mujoco.MjData(self.model)
@@ -187,6 +85,10 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.render_mode = render_mode
         self.width, self.height = int(width), int(height)
         self.camera_name, self.hide_goal = camera_name, hide_goal
+        self.looks_mode: str = looks
+        """`looks`, as given: "plain" or "random" (`fetch.looks.LOOKS`)."""
+        self.looks: Looks | None = None
+        """This episode's looks (`fetch.looks`): drawn at each reset under looks="random", else None."""
         self._renderer: Any = None
         self._viewer: Any = None
         self._goal_mocap = mocap_index(self.model, "goal")
@@ -227,6 +129,8 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         super().reset(seed=seed)
+        if self.looks_mode == "random":  # from a child of the seed's sequence: the task's draws stay
+            self.looks = Looks.draw(self.model, self.np_random.spawn(1)[0])
         return self._begin(lambda: self.task.reset(self.model, self.data, self.np_random, self._start))
 
     def reset_like(self, place: Callable[[mujoco.MjData], np.ndarray]
@@ -288,7 +192,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         info.update(self.task.facts(d, vector))
         obs = {"observation": vector, "achieved_goal": achieved.copy(), "desired_goal": desired}
         if self._images is not None:  # of the state just observed: present() or mj_forward made it current
-            obs.update(self._images.render(d))
+            obs.update(self._images.render(d, self.looks))
         return obs, info
 
     # -- MuJoCo state --------------------------------------------------------------------
@@ -332,12 +236,12 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         """SHA-256 of the compiled model (MJB bytes) with its mesh and texture files named relative to
         their directories: equal models, equal hashes, wherever installed. (The model itself holds the
         files' absolute paths, so hashing it as it is gave two venvs on one machine two hashes.)"""
-        return _portable_hash(type(self.task))
+        return portable_hash(type(self.task))
 
     def legacy_model_hash(self) -> str:
         """The hash datasets were stamped with before `model_hash` left the install paths out: the same
         model installed elsewhere has another. A dataset holding it still takes appends here."""
-        return _mjb_hash(self._compiled.model)
+        return mjb_hash(self._compiled.model)
 
     def observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """The observation and info of the current state (e.g. after `set_state`)."""
@@ -369,13 +273,15 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             return None
         if self._renderer is None:
             self._renderer = rendering.OffscreenRenderer(self.model, self.width, self.height)
-        return self._renderer.render(self.data, self.camera_name,
-                                     depth=self.render_mode == "depth_array", hide_goal=self.hide_goal)
+        return self._renderer.render(self.data, self.camera_name, depth=self.render_mode == "depth_array",
+                                     hide_goal=self.hide_goal, looks=self.looks)
 
-    def images(self, states: np.ndarray, threads: int = 1) -> dict[str, np.ndarray]:
-        """Per camera, the images of N `get_state` states, as observations hold them; the env ends in the last."""
-        cams = self._images
-        return cams.render_states(states, self.set_state, self.data, STATE_SPEC, threads) if cams else {}
+    def images(self, states: np.ndarray, threads: int = 1,
+               looks: Sequence[Looks | None] | None = None) -> dict[str, np.ndarray]:
+        """Per camera, the images of N `get_state` states, as observations hold them, each drawn with its
+        `looks` (default: this episode's); the env ends in the last."""
+        cams, each = self._images, [self.looks] * len(states) if looks is None else looks
+        return cams.render_states(states, self.set_state, self.data, STATE_SPEC, threads, each) if cams else {}
 
     def close(self) -> None:
         if self._images is not None:
@@ -390,11 +296,12 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     # -- pickling: the same env, in the same state ----------------------------------------
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"kwargs": self._kwargs, "state": self.get_state(),
+        return {"kwargs": self._kwargs, "state": self.get_state(), "looks": self.looks,
                 "rng": self.np_random.bit_generator.state, "rng_seed": self._np_random_seed}
 
     def __setstate__(self, saved: dict[str, Any]) -> None:
         self.__init__(**saved["kwargs"])  # type: ignore[misc]
         self.set_state(saved["state"])
+        self.looks = saved.get("looks")
         self.np_random.bit_generator.state = saved["rng"]
         self._np_random_seed = saved["rng_seed"]

@@ -12,10 +12,8 @@ import numpy as np
 
 from fetch._gl import backend, has_display, make_renderer
 from fetch.errors import FetchError, UnknownNameError
-
-GOAL_GROUP = 2
-"""Geom group holding only the goal marker; turned off to hide it."""
-
+from fetch.looks import Looks
+from fetch.scene import GOAL_GROUP
 
 CAMERAS = ("front", "side", "behind", "wrist")
 """The cameras this package adds to every scene, the ones to choose from (`scene.CAMERAS` places the first
@@ -108,8 +106,9 @@ class OffscreenRenderer:
         self._off = (mujoco.mjtRndFlag.mjRND_REFLECTION,) if quality == "fast" else ()
 
     def render(self, data: mujoco.MjData, camera: str, depth: bool = False,
-               hide_goal: bool = False) -> np.ndarray:
-        """An (H, W, 3) uint8 image, or with depth=True an (H, W) float32 depth map [m]."""
+               hide_goal: bool = False, looks: Looks | None = None) -> np.ndarray:
+        """An (H, W, 3) uint8 image, or with depth=True an (H, W) float32 depth map [m]; drawn with `looks`
+        (`fetch.looks`) where given, else as modelled."""
         if depth != self._depth:
             if depth:
                 self._renderer.enable_depth_rendering()
@@ -119,6 +118,8 @@ class OffscreenRenderer:
         self._renderer.update_scene(data, camera=camera, scene_option=self._options[hide_goal])
         for flag in self._off:
             self._renderer.scene.flags[flag] = False
+        if looks is not None:
+            looks.paint(self._renderer.scene, mujoco.mj_name2id(data.model, mujoco.mjtObj.mjOBJ_CAMERA, camera))
         return self._renderer.render()
 
     def close(self) -> None:

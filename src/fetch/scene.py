@@ -63,6 +63,8 @@ def robot_asset_dir() -> pathlib.Path:
 
 
 SCENE_XML = pathlib.Path(__file__).parent / "assets" / "scene.xml"
+GOAL_GROUP = 2
+"""Geom group holding only the goal marker; renderers turn it off to hide the marker."""
 
 ROOM_SOLREF = (2 * PHYSICS_DT, 1.0)
 """Contacts in our room (floor, table, furniture, objects; the robot's own geoms keep theirs): a
@@ -175,7 +177,7 @@ def _classic_spec(config: RobotConfig) -> mujoco.MjSpec:
     _delete(spec, spec.site("target0"))
     goal = spec.worldbody.add_body(name="goal", mocap=True, pos=[1.3, 0.75, 0.6])
     goal.add_geom(name="goal", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.02, 0, 0], rgba=[1, 0, 0, 0.6],
-                  group=2, contype=0, conaffinity=0, mass=0.001)
+                  group=GOAL_GROUP, contype=0, conaffinity=0, mass=0.001)
     spec.visual.global_.offwidth = 640
     spec.visual.global_.offheight = 480
     return spec

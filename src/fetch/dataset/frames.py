@@ -21,6 +21,7 @@ import numpy as np
 
 from fetch._processes import start_worker, stop_pool, workers_deaf_to_ctrl_c
 from fetch.errors import FetchError
+from fetch.looks import Looks
 
 
 def check_env_camera(env_id: str, env_kwargs: dict[str, Any], camera: str) -> None:
@@ -38,7 +39,8 @@ def check_env_camera(env_id: str, env_kwargs: dict[str, Any], camera: str) -> No
 class StateRenderer:
     """Renders states of one env (id and kwargs, as a dataset records them) offscreen, at `quality`
     (`rendering.IMAGE_QUALITIES`: a dataset's images at its layout's, a video for people at "full"), with
-    the goal's marker hidden where the kwargs say `hide_goal`, as that env's own camera images are."""
+    the goal's marker hidden where the kwargs say `hide_goal`, and under the kwargs' `looks="random"` with
+    the looks of the demo's reset seed, as that env's own camera images are."""
 
     def __init__(self, env_id: str, env_kwargs: dict[str, Any], width: int, height: int,
                  quality: str = "full") -> None:
@@ -53,6 +55,7 @@ class StateRenderer:
         self.cameras = camera_names(model)
         self.width, self.height = width, height
         self.hide_goal = bool(env_kwargs.get("hide_goal", False))
+        self.random_looks = env_kwargs.get("looks", "plain") == "random"
         # The same renderer and settings as `collect --cameras`: images match those recorded live.
         self._renderer = OffscreenRenderer(model, width, height, quality)
 
@@ -61,17 +64,27 @@ class StateRenderer:
 
         check_camera(self.env.model, camera)
 
-    def frame(self, state: np.ndarray, camera: str) -> np.ndarray:
-        """The (H, W, 3) uint8 image of one state."""
-        self.env.set_state(state)
-        return self._renderer.render(self.env.data, camera, hide_goal=self.hide_goal)
+    def looks(self, seed: int | None) -> Looks | None:
+        """The looks of the episode reset with `seed`: None (as modelled) unless the env draws them."""
+        if not self.random_looks:
+            return None
+        if seed is None:
+            raise FetchError("this dataset's env draws its looks from each demo's reset seed (looks='random'), "
+                             "and a demo here records none: its images cannot be drawn as they were")
+        return Looks.for_seed(self.env.model, seed)
 
-    def frames(self, states: np.ndarray, camera: str) -> np.ndarray:
-        """(N, H, W, 3) uint8 images of N states."""
+    def frame(self, state: np.ndarray, camera: str, looks: Looks | None = None) -> np.ndarray:
+        """The (H, W, 3) uint8 image of one state, drawn with `looks` (`looks(seed)`)."""
+        self.env.set_state(state)
+        return self._renderer.render(self.env.data, camera, hide_goal=self.hide_goal, looks=looks)
+
+    def frames(self, states: np.ndarray, camera: str, seed: int | None = None) -> np.ndarray:
+        """(N, H, W, 3) uint8 images of N states of the episode reset with `seed` (its looks)."""
         self.check_camera(camera)
+        looks = self.looks(seed)
         out = np.empty((len(states), self.height, self.width, 3), np.uint8)
         for i, state in enumerate(states):
-            out[i] = self.frame(state, camera)
+            out[i] = self.frame(state, camera, looks)
         return out
 
     def close(self) -> None:
@@ -102,12 +115,12 @@ def _start_process(env_id: str, env_kwargs: dict[str, Any], size: int, quality: 
     _process_renderer.append(StateRenderer(env_id, env_kwargs, size, size, quality))
 
 
-def _render_in_process(path: str, cameras: Sequence[str]) -> dict[str, np.ndarray]:
-    """Render the states saved at `path` (removed once read)."""
+def _render_in_process(path: str, cameras: Sequence[str], seed: int | None) -> dict[str, np.ndarray]:
+    """Render the states saved at `path` (removed once read), of the episode reset with `seed`."""
     states = np.load(path)
     os.unlink(path)
     renderer = _process_renderer[0]
-    return {camera: renderer.frames(states, camera) for camera in cameras}
+    return {camera: renderer.frames(states, camera, seed) for camera in cameras}
 
 
 DIR_PREFIX = "fetch-render-"
@@ -156,12 +169,14 @@ class RenderPool:
         self._pool.shutdown(wait=True, cancel_futures=True)
         self._pool = self._start()
 
-    def submit(self, states: np.ndarray, cameras: Sequence[str]) -> concurrent.futures.Future[dict[str, np.ndarray]]:
-        """Images of every state, per camera ((N, size, size, 3) uint8), when the future is done."""
+    def submit(self, states: np.ndarray, cameras: Sequence[str],
+               seed: int | None = None) -> concurrent.futures.Future[dict[str, np.ndarray]]:
+        """Images of every state, per camera ((N, size, size, 3) uint8), when the future is done; `seed`: the
+        episode's reset seed, which its looks are drawn from where the env draws them."""
         path = self._dir / f"{next(self._jobs)}.npy"
         np.save(path, states)
         with workers_deaf_to_ctrl_c():
-            future = self._pool.submit(_render_in_process, str(path), tuple(cameras))
+            future = self._pool.submit(_render_in_process, str(path), tuple(cameras), seed)
         self._futures.add(future)
         future.add_done_callback(self._futures.discard)
         return future

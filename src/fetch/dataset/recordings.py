@@ -22,6 +22,7 @@ import numpy as np
 from fetch.dataset import npz
 from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset
 from fetch.dataset.replay import ReplayCheck, check_demo, make_replay_env, other_model
+from fetch.dataset.schema import episode_seed
 from fetch.dataset.validation import require_valid, validate
 from fetch.errors import FetchError
 
@@ -45,6 +46,9 @@ class Recording(Protocol):
 
     def states(self, name: str) -> np.ndarray:
         """(T+1, D) the saved states of a chosen demo."""
+
+    def seed(self, name: str) -> int | None:
+        """A chosen demo's reset seed (what its looks are drawn from, `fetch.looks`), None if it has none."""
 
     def replay_env(self) -> Any:
         """The env its demos replay on (unwrapped: no time limit)."""
@@ -102,6 +106,9 @@ class Hdf5Recording:
     def states(self, name: str) -> np.ndarray:
         return np.asarray(self.ds.demo(name)["states"][()])
 
+    def seed(self, name: str) -> int | None:
+        return episode_seed(self.ds.attrs(name))
+
     def replay_env(self) -> Any:
         return make_replay_env(self.ds)
 
@@ -155,6 +162,9 @@ class NpzRecording:
 
     def states(self, name: str) -> np.ndarray:
         return self.demos[name].arrays["states"]
+
+    def seed(self, name: str) -> int | None:
+        return episode_seed(self.demos[name].metadata)
 
     def replay_env(self) -> Any:
         import gymnasium as gym

@@ -22,14 +22,16 @@ still ends the work with a clear error."""
 class _Job:
     name: str
     states: np.ndarray | None
+    seed: int | None
+    """the episode's reset seed (its looks, where the env draws them)."""
     future: concurrent.futures.Future[dict[str, np.ndarray]] | None = None
     """None until submitted to the current workers (and for no states)."""
 
 
 def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: int,
-                 jobs: Iterable[tuple[str, np.ndarray | None]],
+                 jobs: Iterable[tuple[str, np.ndarray | None, int | None]],
                  cameras: Sequence[str], quality: str = "full") -> Iterator[dict[str, np.ndarray] | None]:
-    """For each (demo name, its states (N, state size)), the images per camera ((N, size, size, 3)
+    """For each (demo name, its states (N, state size), its reset seed), the images per camera ((N, size, size, 3)
     uint8, drawn at `quality`), in order; None for None. At most 2 x `workers` demos are in flight, not every demo's
     images at once. A worker that dies is replaced `RESTARTS` times at most (said on stderr)."""
     from fetch.dataset.frames import RenderPool
@@ -46,7 +48,7 @@ def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: in
                     pending.append(_Job(*job))
                 for waiting in pending:
                     if waiting.states is not None and waiting.future is None:
-                        waiting.future = pool.submit(waiting.states, tuple(cameras))
+                        waiting.future = pool.submit(waiting.states, tuple(cameras), waiting.seed)
                 if not pending:
                     return
                 first = pending[0]

@@ -125,7 +125,7 @@ def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size
     from fetch.dataset.render_ahead import render_ahead
 
     with open_dataset(index) as ds:
-        jobs = ((name, ds.demo(name)["states"][()]) for name in names)
+        jobs = ((name, ds.demo(name)["states"][()], schema.episode_seed(ds.attrs(name))) for name in names)
         for name, images in zip(names, render_ahead(env_id, env_kwargs, size, workers, jobs, (camera,),
                                                                    quality), strict=True):
             assert images is not None  # every demo has states

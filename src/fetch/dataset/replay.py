@@ -168,7 +168,8 @@ def run_video(args: argparse.Namespace) -> int:
             for name in recording.names:
                 path = out if len(recording.names) == 1 else out.with_name(f"{out.stem}_{name}{out.suffix}")
                 states = recording.states(name)
-                frames = (renderer.frame(state, args.camera) for state in states)
+                looks = renderer.looks(recording.seed(name))
+                frames = (renderer.frame(state, args.camera, looks) for state in states)
                 count = write_video(path, progress(frames, len(states), f"video {name}", unit="frames"), fps,
                                     args.size, args.size)
                 print(f"{name}: {count} frames ({len(states) - 1} steps and the final state) at {fps:g} fps, "

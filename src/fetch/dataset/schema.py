@@ -222,3 +222,10 @@ def check_arrays(arrays: Mapping[str, Any], layout: Layout, num_samples: int) ->
         if np.dtype(array.dtype) != np.dtype(field.dtype):
             problems.append(f"{field.path} has dtype {array.dtype}, expected {field.dtype}")
     return problems
+
+
+def episode_seed(attrs: Mapping[str, Any]) -> int | None:
+    """A demo's reset seed from its attributes (what its looks are drawn from under looks="random",
+    `fetch.looks`), or None where it has none that is a whole number."""
+    seed = attrs.get("seed")
+    return int(seed) if isinstance(seed, int | np.integer) and not isinstance(seed, bool) else None

@@ -21,6 +21,7 @@ import numpy as np
 
 from fetch.dataset.habits import FLAG_KINDS, dataset_flags
 from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, one_line, open_dataset, runs
+from fetch.dataset.schema import episode_seed
 from fetch.dataset.validation import validate
 from fetch.errors import DatasetError, FetchError
 from fetch.rendering import check_image_size
@@ -192,7 +193,8 @@ def _frames(ds: Dataset, names: list[str], camera: str, size: int, workers: int)
         ok = array.ndim == 2 and array.shape[1] == ds.layout.state_size and np.all(np.isfinite(array))
         return array if ok and len(array) else None
 
-    jobs = ((name, states(name)) for name in names)
+    drawn = ds.env_kwargs.get("looks") == "random"  # the images need each demo's seed (`fetch.looks`)
+    jobs = ((name, states(name), episode_seed(ds.attrs(name)) if drawn else None) for name in names)
     for images in render_ahead(ds.env_id, ds.env_kwargs, size, min(workers, max(1, len(names))), jobs, (camera,)):
         yield None if images is None else images[camera]
 

@@ -332,14 +332,14 @@ class DatasetWriter(BackgroundWriter):
         cameras = self._images_missing(demo.arrays)
         if not cameras:
             return
-        images = self._render(name, demo.arrays["states"], cameras)
+        images = self._render(name, demo.arrays["states"], cameras, schema.episode_seed(demo.attrs))
         arrays = dict(demo.arrays)
         for camera, frames in images.items():
             arrays[f"obs/{schema.image_key(camera)}"] = frames[:-1]
             arrays[f"next_obs/{schema.image_key(camera)}"] = frames[1:]
         write_demo_file(path, name, Demo(arrays, demo.attrs))
 
-    def _render(self, name: str, states: np.ndarray, cameras: list[str]) -> dict[str, np.ndarray]:
+    def _render(self, name: str, states: np.ndarray, cameras: list[str], seed: int | None) -> dict[str, np.ndarray]:
         """A demo's images, from a worker process; one that dies is replaced, as render_ahead's are."""
         from fetch.dataset.frames import RenderPool
         from fetch.dataset.render_ahead import RESTARTS
@@ -351,7 +351,7 @@ class DatasetWriter(BackgroundWriter):
         restarts = RESTARTS
         while True:
             try:
-                return self._renderer.submit(states, cameras).result()
+                return self._renderer.submit(states, cameras, seed).result()
             except concurrent.futures.process.BrokenProcessPool as e:
                 if not restarts:  # the demo stays saved without images; the next session renders them
                     self._renderer.close()

@@ -304,7 +304,7 @@ class Generator:
                              "ended": time.time()})
             labels = annotate(base, self.subtasks, demo.arrays["states"], demo.arrays["actions"][:, 3]).labels
             demo.arrays["subtasks"] = labels
-        images = self.render(demo.arrays["states"]) if demo is not None else {}
+        images = self.render(demo.arrays["states"], seed) if demo is not None else {}
         return Result(number, seed, success, steps, tuple(choices), tuple(starts), demo, images)
 
     def lost(self, k: int) -> int | None:
@@ -315,15 +315,15 @@ class Generator:
                 return grasp
         return None
 
-    def render(self, states: np.ndarray) -> dict[str, np.ndarray]:
-        """Each camera's (N, size, size, 3) images of N saved states; a separate env's, so the attempts'
-        own env is never restored to a state."""
+    def render(self, states: np.ndarray, seed: int) -> dict[str, np.ndarray]:
+        """Each camera's (N, size, size, 3) images of N saved states of the attempt reset with `seed` (its
+        looks, where the env draws them); a separate env's, so the attempts' own env is never restored."""
         if not self.cameras:
             return {}
         if self._renderer is None:
             self._renderer = StateRenderer(self.env_id, self.env_kwargs, self.image_size, self.image_size,
                                            self.image_quality)
-        return {camera: self._renderer.frames(states, camera) for camera in self.cameras}
+        return {camera: self._renderer.frames(states, camera, seed) for camera in self.cameras}
 
     def _step(self, target: np.ndarray, grip: float, opening: float | None, rng: np.random.Generator,
               held_for: int) -> tuple[bool, int]:

@@ -7,6 +7,7 @@ from typing import Any
 
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.dataset.reader import FILE_HELP
+from fetch.looks import LOOKS
 from fetch.rendering import CAMERAS, DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES, QUALITY_HELP
 
 SUBTASKS_HELP = "cut a dataset's demos into their task's subtasks and print where each begins"
@@ -58,6 +59,10 @@ def add_generate_parser(sub: Any) -> None:
     g.add_argument("--image-size", type=int, default=DEFAULT_IMAGE_SIZE,
                    help=f"recorded image width and height [px] (default {DEFAULT_IMAGE_SIZE})")
     g.add_argument("--image-quality", default=DEFAULT_IMAGE_QUALITY, choices=IMAGE_QUALITIES, help=QUALITY_HELP)
+    g.add_argument("--looks", default=None, choices=LOOKS,
+                   help="plain: the scene as modelled; random: each demo's colours, lights and camera mounts drawn "
+                        "from its reset seed (visual randomisation, for pixel policies; docs/rendering.md); "
+                        "default: the source dataset's")
     g.set_defaults(run=run_generate)
     s = sub.add_parser("subtasks", help=SUBTASKS_HELP)
     s.add_argument("file", help=FILE_HELP)
@@ -75,7 +80,8 @@ def run_generate(args: argparse.Namespace) -> int:
     cameras = tuple(c.strip() for c in args.cameras.split(",") if c.strip())  # as collect's --cameras
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
                             workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray,
-                            cameras=cameras, image_size=args.image_size, image_quality=args.image_quality)
+                            cameras=cameras, image_size=args.image_size, image_quality=args.image_quality,
+                            looks=args.looks)
     summary = generate(config)
     print(summary.describe())
     return 1 if summary.gave_up else 0

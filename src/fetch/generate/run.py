@@ -27,6 +27,7 @@ from fetch.errors import FetchError
 from fetch.generate.attempt import Options, Result
 from fetch.generate.sources import Sources, load_sources
 from fetch.generate.workers import Backend, Pool, RayCluster, Serial, Work, default_workers
+from fetch.looks import check_looks
 from fetch.rendering import DEFAULT_IMAGE_QUALITY, check_camera_list, check_image_quality, check_image_size
 
 MAX_SEED = 2**62
@@ -58,6 +59,9 @@ class GenerateConfig:
     """[px] the images' width and height."""
     image_quality: str = DEFAULT_IMAGE_QUALITY
     """how the images are drawn (`rendering.IMAGE_QUALITIES`)."""
+    looks: str | None = None
+    """the demos' looks (`fetch.looks.LOOKS`; "random": each demo's drawn from its reset seed, recorded in the
+    dataset's env kwargs); None: the source dataset's."""
 
     def __post_init__(self) -> None:
         if self.demos < 1:
@@ -75,6 +79,8 @@ class GenerateConfig:
         check_image_size(self.image_size, "--image-size")  # as collect's: checked with no cameras too
         check_image_quality(self.image_quality, "--image-quality")
         check_camera_list(self.cameras)
+        if self.looks is not None:
+            check_looks(self.looks, "--looks")
 
 
 @dataclasses.dataclass
@@ -159,6 +165,8 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
     say = log or (lambda text: print(text, file=sys.stderr, flush=True))
     require_apart(config.out, [config.source])
     sources = load_sources(config.source)
+    if config.looks is not None and config.looks != sources.env_kwargs.get("looks", "plain"):
+        sources = dataclasses.replace(sources, env_kwargs={**sources.env_kwargs, "looks": config.looks})
     options = config.options or Options()
     if options.max_steps is None:
         options = dataclasses.replace(options, max_steps=sources.attempt_steps(options.success_hold_steps))

@@ -14,6 +14,7 @@ from fetch.errors import FetchError
 from fetch.learn import TORCH_INSTALL, require_torch
 from fetch.learn.kinds import FINGER_SCALE, INPUTS, KINDS, POLICY_KINDS
 from fetch.learn.settings import ACCELERATORS, AUTO, CORRECTION_WEIGHT, PRECISIONS, TrainRequest, sees_pixels
+from fetch.looks import LOOKS
 from fetch.tasks import REGISTRATIONS, Training, mirroring_ids
 
 
@@ -154,6 +155,10 @@ def add_eval_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--videos", type=int, default=3, help="how many episodes --video records (default 3)")
     p.add_argument("--camera", default="front", help="the videos' camera: front (default), side, behind or wrist")
     p.add_argument("--json", default=None, metavar="FILE", help="also write the per-episode results as JSON")
+    p.add_argument("--looks", default=None, choices=LOOKS,
+                   help="the scene's looks in the episodes' images: plain (as modelled) or random (colours, lights "
+                        "and camera mounts drawn per episode from its seed, so unseen ones; docs/rendering.md); "
+                        "default: those of the policy's training data")
 
 
 def run_eval(args: argparse.Namespace) -> int:
@@ -170,6 +175,8 @@ def run_eval(args: argparse.Namespace) -> int:
 
         require_pyav()  # before the episodes, not after them
     policy = load(args.run_dir)
+    if args.looks is not None:
+        policy.env_kwargs = {**policy.env_kwargs, "looks": args.looks}
     if args.video is not None:
         from fetch.dataset.frames import check_env_camera
 

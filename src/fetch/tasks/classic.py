@@ -1,7 +1,7 @@
 """The classic Fetch tasks (Reach, Push, PickPlace, Slide): gymnasium-robotics' Fetch*-v4, reproduced.
 
 Each loads its scene from gymnasium-robotics' own task file, starts as that suite starts (see
-`fetch.env._settle_classic`) and draws its object and goal from `env.np_random` in the order
+`fetch.compiled.settle_classic`) and draws its object and goal from `env.np_random` in the order
 the classic `_reset_sim` and `_sample_goal` do, so a seed gives the same start and goal.
 """
 

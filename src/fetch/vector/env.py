@@ -8,9 +8,8 @@ runs in `worlds.py`, observations come from `Observer.batch`. Resets go through 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
-from typing import Any, NamedTuple, SupportsFloat, cast
+from typing import Any, SupportsFloat, cast
 
 import gymnasium as gym
 import mujoco
@@ -24,19 +23,15 @@ from fetch import observation as ob
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.env import FetchEnv
 from fetch.errors import FetchError, UnknownNameError
+from fetch.looks import Looks
 from fetch.rendering import DEFAULT_IMAGE_QUALITY
 from fetch.robot import action_rule, checked_actions
-from fetch.tasks.base import mocap_index, reward
+from fetch.tasks.base import mocap_index
+from fetch.vector.observe import BatchObserver
 from fetch.vector.worlds import StateLayout, Worlds, make_worlds
 
 Obs = dict[str, np.ndarray]
 RENDER_MODES = ("rgb_array", "depth_array")
-
-
-class _Rows(NamedTuple):
-    """A world's qpos row where a task's `facts` reads `data.qpos` (the drawers' opening)."""
-
-    qpos: np.ndarray
 
 
 class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
@@ -57,7 +52,8 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
                  height: int = 480, camera_name: str = "front", hide_goal: bool = False,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, nthread: int = 0,
                  render_worlds: Sequence[int] | None = None, cameras: Sequence[str] = (),
-                 image_size: int = DEFAULT_IMAGE_SIZE, image_quality: str = DEFAULT_IMAGE_QUALITY) -> None:
+                 image_size: int = DEFAULT_IMAGE_SIZE, image_quality: str = DEFAULT_IMAGE_QUALITY,
+                 looks: str = "plain") -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise FetchError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
         self.num_envs = int(num_envs)
@@ -76,7 +72,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         # The template: validates the env's own arguments, resets one world at a time and renders.
         self._env = FetchEnv(task=task, reward_type=reward_type, render_mode=render_mode, width=width, height=height,
                              camera_name=camera_name, hide_goal=hide_goal, cameras=cameras, image_size=image_size,
-                             image_quality=image_quality)
+                             image_quality=image_quality, looks=looks)
         env = self._env
         self.task, self.robot, self.model = env.task, env.robot, env.model
         self.reward_type = reward_type
@@ -95,11 +91,11 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
                             f"(mujoco {mujoco.__version__})")
         self._layout = StateLayout(self.model)
         self._worlds.state[:] = env.get_state()  # every world as a new env is before its first reset
-        self._observer = ob.Observer(self.model, self.task.parts)
-        self._achieved = self.observation_layout[self.task.achieved]
+        self._observer = BatchObserver(self.task, ob.Observer(self.model, self.task.parts), reward_type)
         self._goal_mocap = mocap_index(self.model, "goal")
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
         self._seeds: list[int | None] = [None] * self.num_envs
+        self._looks: list[Looks | None] = [None] * self.num_envs  # each world's episode's (looks="random")
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=np.bool_)
         # What the last reset or step returned: a masked reset returns the other worlds' as they were.
@@ -228,6 +224,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         """One world's frame (`render_mode` rgb_array or depth_array)."""
         (world,) = self._check_worlds([world])
         self._env.set_state(self._worlds.state[world])
+        self._env.looks = self._looks[world]
         return self._env.render()
 
     def close_extras(self, **kwargs: Any) -> None:
@@ -276,7 +273,7 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
             obs, info = env.reset(seed=seed)
             self._rngs[world], self._seeds[world] = env.np_random, env.np_random_seed
         env.get_state(self._worlds.state[world])
-        self._elapsed[world] = 0
+        self._elapsed[world], self._looks[world] = 0, env.looks
         return obs, info
 
     def _check_shape(self, actions: Any) -> np.ndarray:
@@ -320,8 +317,9 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         if ids is not None:
             worlds.state[ids] = rows
         goals = layout.view(rows, "mocap_pos")[:, self._goal_mocap].copy()
-        obs, rewards, info = self._observe(worlds.sensordata[sel], goals, layout.view(rows, "qpos"))
-        return {**obs, **self._env.images(rows, self.nthread)}, rewards, info  # the template's, on nthread threads
+        obs, rewards, info = self._observer(worlds.sensordata[sel], goals, layout.view(rows, "qpos"))
+        looks = self._looks if ids is None else [self._looks[i] for i in ids]  # the template's images, nthread threads
+        return {**obs, **self._env.images(rows, self.nthread, looks)}, rewards, info
 
     def _step_one(self, action: np.ndarray) -> tuple[Obs, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """`step` of one world: nothing to spread over threads, and numpy's cost per call exceeds
@@ -354,27 +352,6 @@ class FetchVectorEnv(VectorEnv[Obs, np.ndarray, np.ndarray]):
         for key, value in info.items():
             infos[key], infos[f"_{key}"] = np.array([value], dtype=np.float64), np.array([True])
         return (batched, np.array([reward], dtype=np.float64), np.array([False]), np.array([truncated]), infos)
-
-    def _observe(self, sensordata: np.ndarray, goals: np.ndarray,
-                 qpos: np.ndarray) -> tuple[Obs, np.ndarray, dict[str, np.ndarray]]:
-        """Observations, rewards and infos of worlds from their sensors, goals and joints, as
-        `FetchEnv._observe` computes them for one. The distance is `math.dist` and success the task's
-        scalar rule per world: numpy's norm differs from `math.dist` in the last bit (18 % of random
-        pairs), which `info["distance"]` and a dense reward would show."""
-        vectors = self._observer.batch(sensordata)
-        achieved = vectors[:, self._achieved].copy()
-        task = self.task
-        distance, success, facts = [], [], []
-        for k, (a, g) in enumerate(zip(achieved.tolist(), goals.tolist(), strict=True)):
-            d = math.dist(a, g)
-            distance.append(d)
-            success.append(1.0 if task.success(a, g, d) else 0.0)
-            facts.append(task.facts(cast(mujoco.MjData, _Rows(qpos[k])), vectors[k]))
-        info = {"is_success": np.array(success), "distance": np.array(distance)}
-        for key in facts[0]:
-            info[key] = np.array([f[key] for f in facts], dtype=np.float64)
-        rewards = reward(self.reward_type, info["is_success"], info["distance"])
-        return {"observation": vectors, "achieved_goal": achieved, "desired_goal": goals}, rewards, info
 
     def _add_infos(self, infos: dict[str, Any], values: dict[str, np.ndarray], ids: np.ndarray) -> dict[str, Any]:
         """`_add_info` for many worlds at once: each key an (num_envs,) float array with its `_key` mask."""
