@@ -90,6 +90,9 @@ class Looks:
     """(cameras, 3) [m] per model camera, world frame."""
     camera_turn: np.ndarray
     """(cameras, 3, 3) per model camera, the rotation of its view (world frame)."""
+    _colours: dict[int, np.ndarray] = dataclasses.field(default_factory=dict, compare=False, repr=False)
+    """model geom id -> its painted red, green and blue, worked out the first time it is drawn (a geom's
+    colour as modelled does not change), so a frame costs a copy per geom, not the arithmetic."""
 
     @classmethod
     def draw(cls, model: mujoco.MjModel, rng: np.random.Generator) -> Looks:
@@ -117,13 +120,16 @@ class Looks:
 
     def paint(self, scene: mujoco.MjvScene, camera: int) -> None:
         """Repaint `scene` (made by `mjv_updateScene` from model camera `camera`) with these looks."""
-        geom_type = int(mujoco.mjtObj.mjOBJ_GEOM)
+        geom_type, things, colours = int(mujoco.mjtObj.mjOBJ_GEOM), self.things, self._colours
         geoms = scene.geoms
         for i in range(scene.ngeom):
             geom = geoms[i]
-            thing = self.things.get(int(geom.objid)) if int(geom.objtype) == geom_type else None
-            if thing is not None:
-                geom.rgba[:3] = np.clip(geom.rgba[:3] * self.gain[thing] + self.shift[thing], 0.0, 1.0)
+            if geom.objtype != geom_type or (thing := things.get(geom.objid)) is None:
+                continue
+            colour = colours.get(geom.objid)
+            if colour is None:
+                colour = colours[geom.objid] = np.clip(geom.rgba[:3] * self.gain[thing] + self.shift[thing], 0, 1)
+            geom.rgba[:3] = colour
         lights, model_light = scene.lights, 0
         for i in range(scene.nlight):
             light = lights[i]
