@@ -119,7 +119,8 @@ class Looks:
         return cls.draw(model, seed_generator(seed))
 
     def paint(self, scene: mujoco.MjvScene, camera: int) -> None:
-        """Repaint `scene` (made by `mjv_updateScene` from model camera `camera`) with these looks."""
+        """Repaint `scene` (made by `mjv_updateScene` from model camera `camera`) with these looks: once per
+        update, as the lights' strengths are scaled where they stand."""
         geom_type, things, colours = int(mujoco.mjtObj.mjOBJ_GEOM), self.things, self._colours
         geoms = scene.geoms
         for i in range(scene.ngeom):
