@@ -139,6 +139,37 @@ def test_eval_renders_the_cameras_of_a_pixel_policy(torch, run: pathlib.Path) ->
     env.close()
 
 
+def test_eval_looks_random_draws_each_episode_s_looks_for_the_policy(torch, run: pathlib.Path,  # noqa: ANN001
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """`eval --looks random`: the episodes' envs draw their looks (the training data's were plain), so the
+    policy's first actions differ from plain's on the same seeds; an unknown choice is argparse's error."""
+    import fetch.learn
+    from fetch.learn import evaluate as evaluate_module
+
+    made: list[dict[str, object]] = []
+    real = evaluate_module.make_vector_env
+
+    def spy(env_id: str, count: int, env_kwargs: dict[str, object], *args: object) -> object:
+        made.append(dict(env_kwargs))
+        return real(env_id, count, env_kwargs, *args)
+
+    monkeypatch.setattr(evaluate_module, "make_vector_env", spy)
+    assert main(["eval", str(run), "--episodes", "2", "--envs", "2", "--looks", "random"]) == 0
+    assert made[-1]["looks"] == "random"
+    policy = fetch.learn.load(run)
+    assert "looks" not in policy.env_kwargs  # recorded plain
+    first = []
+    for looks in ("plain", "random"):
+        env = gym.make(policy.env_id, **policy.env_kwargs, **policy.observation_kwargs, looks=looks)
+        obs, _ = env.reset(seed=5)
+        policy.reset()
+        first.append(policy(obs))
+        env.close()
+    assert not np.array_equal(first[0], first[1])
+    with pytest.raises(SystemExit):
+        main(["eval", str(run), "--looks", "wild"])
+
+
 def test_a_pixel_policy_drives_a_collection_session_seeing_what_the_env_shows(torch, run: pathlib.Path,  # noqa: ANN001
                                                                             tmp_path: pathlib.Path) -> None:
     """`collect --device policy` with a pixel policy: the device renders the cameras from the state the
