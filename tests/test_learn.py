@@ -142,8 +142,8 @@ def test_temporal_ensembling_averages_every_chunk_prediction_for_this_step(torch
         made = list(range(max(0, t - 2), t + 1))  # the chunks that predict step t, oldest first
         weights = np.exp(-decay * np.arange(len(made)))
         expected = sum(w * chunks[s][t - s] for w, s in zip(weights, made, strict=True)) / weights.sum()
-        np.testing.assert_allclose(acted[t], np.clip(acted_actions(expected, policy.config.finger_scale), -1, 1),
-                                   atol=1e-5)
+        fingers = policy.config.finger_scale, policy.config.finger_span
+        np.testing.assert_allclose(acted[t], np.clip(acted_actions(expected, *fingers), -1, 1), atol=1e-5)
 
 
 @pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])
@@ -177,12 +177,14 @@ def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reac
             each = [net.step(x[:, None, :], None)[0][0, 0].numpy() for net in members]
         else:
             each = [net(x)[0, 0].numpy() for net in members]  # the first action of each member's chunk
-    mean = acted_actions(np.mean(each, axis=0), policy.config.finger_scale)  # the fingers' a[3] as acted
+    fingers = policy.config.finger_scale, policy.config.finger_span
+    mean = acted_actions(np.mean(each, axis=0), *fingers)  # the fingers' a[3] as acted
     np.testing.assert_allclose(policy(obs), np.clip(mean, -1, 1), atol=1e-5)
     env.close()
 
 
-@pytest.mark.parametrize(("setting", "before"), [("members", 1), ("goal_offsets", False), ("finger_scale", 0.0)])
+@pytest.mark.parametrize(("setting", "before"), [("members", 1), ("goal_offsets", False), ("finger_scale", 0.0),
+                                                   ("finger_span", 1.0)])
 def test_a_checkpoint_from_before_a_setting_existed_loads_as_it_was(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
                                                                    setting: str, before: object) -> None:
     """Runs trained before ensembles, goal offsets or the fingers' companded action existed store no such
@@ -223,7 +225,8 @@ def test_a_policy_with_goal_offsets_sees_the_goal_relative_to_the_achieved_goal_
         net = torch.from_numpy(policy.normalizer(x)[None])
         expected = (policy.model.step(net[:, None, :], None)[0][0, 0] if kind == "gru" else policy.model(net)[0, 0])
     policy.reset()
-    expected = acted_actions(expected.numpy(), policy.config.finger_scale)  # the fingers' a[3] as acted
+    fingers = policy.config.finger_scale, policy.config.finger_span
+    expected = acted_actions(expected.numpy(), *fingers)  # the fingers' a[3] as acted
     np.testing.assert_allclose(policy(obs), np.clip(expected, -1, 1), atol=1e-5)
     env.close()
 
@@ -295,9 +298,10 @@ def test_eval_writes_videos(torch, reach: pathlib.Path, tmp_path) -> None:  # no
 
 def test_the_fingers_action_is_learnt_companded_and_acted_as_recorded() -> None:
     """The fingers' servo range (+-finger_scale) spans [-1, 1], the squeeze (-1) goes to -2, the hand's
-    three numbers are left as they are, and acting undoes it exactly; finger_scale 0 leaves actions alone."""
+    three numbers are left as they are, and acting undoes it exactly; finger_scale 0 leaves actions alone;
+    a span scales the learnt a[3]."""
     from fetch.learn.data import acted_actions, learnt_actions
-    from fetch.learn.kinds import FINGER_SCALE
+    from fetch.learn.kinds import FINGER_SCALE, FINGER_SPAN
 
     a = np.array([[0.3, -0.7, 1.0, a3] for a3 in (-1.0, -0.05, -0.02, 0.0, 0.01, 0.05, 0.5, 1.0)], np.float32)
     learnt = learnt_actions(a, FINGER_SCALE)
@@ -306,6 +310,11 @@ def test_the_fingers_action_is_learnt_companded_and_acted_as_recorded() -> None:
     assert np.all(np.diff(learnt[:, 3]) > 0)  # order kept: a policy's mean of two is between them
     np.testing.assert_allclose(acted_actions(learnt, FINGER_SCALE), a, atol=1e-6)
     assert learnt_actions(a, 0.0) is a and acted_actions(a, 0.0) is a
+    # the default span: the servo range over +-0.5, the squeeze at -1, as a[3] weighs recorded
+    half = learnt_actions(a, FINGER_SCALE, FINGER_SPAN)
+    np.testing.assert_allclose(half[:, 3], FINGER_SPAN * learnt[:, 3], atol=1e-6)
+    assert FINGER_SPAN == 0.5 and half[0, 3] == -1.0
+    np.testing.assert_allclose(acted_actions(half, FINGER_SCALE, FINGER_SPAN), a, atol=1e-6)
 
 
 def test_eval_seeds_skip_the_excluded_ones() -> None:

@@ -241,27 +241,27 @@ def with_reflections(demos: Demos) -> Demos:
     return dataclasses.replace(demos, train=demos.train + tuple(reflect(e) for e in demos.train))
 
 
-def learnt_actions(actions: np.ndarray, finger_scale: float) -> np.ndarray:
-    """(..., 4) actions as a policy learns them: a[3] companded, |a[3]| <= `finger_scale` stretched over [-1, 1]
-    and the rest of [-1, 1] squeezed into what is left up to +-2, so that the fingers' servo (a few hundredths:
-    open to 3 cm, hold at 5) weighs as much as the hand's moves and the squeeze (-1) stays apart from it;
-    `finger_scale` 0: as they are. `acted_actions` is the inverse."""
+def learnt_actions(actions: np.ndarray, finger_scale: float, span: float = 1.0) -> np.ndarray:
+    """(..., 4) actions as a policy learns them: a[3] companded, |a[3]| <= `finger_scale` stretched over
+    [-span, span] and the rest of [-1, 1] squeezed into what is left up to +-2 span, so that the fingers'
+    servo (a few hundredths: open to 3 cm, hold at 5) is resolved as finely as the hand's moves and the
+    squeeze (-1) stays apart from it; `finger_scale` 0: as they are. `acted_actions` is the inverse."""
     if not finger_scale:
         return actions
     out = np.array(actions, np.float32)
     a = out[..., 3]
     size = np.abs(a)
-    out[..., 3] = np.where(size <= finger_scale, a / finger_scale,
-                           np.sign(a) * (1.0 + (size - finger_scale) / (1.0 - finger_scale)))
+    out[..., 3] = span * np.where(size <= finger_scale, a / finger_scale,
+                                  np.sign(a) * (1.0 + (size - finger_scale) / (1.0 - finger_scale)))
     return out
 
 
-def acted_actions(learnt: np.ndarray, finger_scale: float) -> np.ndarray:
+def acted_actions(learnt: np.ndarray, finger_scale: float, span: float = 1.0) -> np.ndarray:
     """The actions a policy's (..., 4) outputs in `learnt_actions`' space stand for."""
     if not finger_scale:
         return learnt
     out = np.array(learnt, np.float32)
-    y = out[..., 3]
+    y = out[..., 3] / span
     size = np.abs(y)
     out[..., 3] = np.where(size <= 1.0, y * finger_scale,
                            np.sign(y) * (finger_scale + (size - 1.0) * (1.0 - finger_scale)))

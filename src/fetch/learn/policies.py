@@ -132,7 +132,7 @@ def samples(config: PolicyConfig, episodes: Sequence[Episode], normalize: Any) -
     xs, ys, ms = [], [], []
     for e in episodes:
         x, y, m = kind_.examples(config, normalize(policy_inputs(e, config.goal_offsets, config.blind)),
-                                 learnt_actions(e.actions, config.finger_scale))
+                                 learnt_actions(e.actions, config.finger_scale, config.finger_span))
         xs.append(x)
         ys.append(y)
         ms.append(m)

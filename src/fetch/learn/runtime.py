@@ -70,7 +70,8 @@ class Policy:
         images = [torch.from_numpy(self._image(obs, key, single)) for key in self.image_keys]
         with torch.no_grad():
             action = self._actor(torch.from_numpy(x), *images)
-        action = np.clip(acted_actions(action, self.config.finger_scale), -1.0, 1.0).astype(np.float32)
+        config = self.config
+        action = np.clip(acted_actions(action, config.finger_scale, config.finger_span), -1.0, 1.0).astype(np.float32)
         return action[0] if single else action
 
     def _image(self, obs: Mapping[str, np.ndarray], key: str, single: bool) -> np.ndarray:
