@@ -103,6 +103,7 @@ class OffscreenRenderer:
             model.vis.quality.offsamples = samples
         self._options = {hide: _scene_option(hide) for hide in (False, True)}
         self._depth = False
+        self._camera_ids: dict[str, int] = {}  # each camera's id, looked up once (a `Looks` paints per camera)
         self._off = (mujoco.mjtRndFlag.mjRND_REFLECTION,) if quality == "fast" else ()
 
     def render(self, data: mujoco.MjData, camera: str, depth: bool = False,
@@ -119,7 +120,9 @@ class OffscreenRenderer:
         for flag in self._off:
             self._renderer.scene.flags[flag] = False
         if looks is not None:
-            looks.paint(self._renderer.scene, mujoco.mj_name2id(data.model, mujoco.mjtObj.mjOBJ_CAMERA, camera))
+            if camera not in self._camera_ids:
+                self._camera_ids[camera] = mujoco.mj_name2id(data.model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+            looks.paint(self._renderer.scene, self._camera_ids[camera])
         return self._renderer.render()
 
     def close(self) -> None:

@@ -55,7 +55,7 @@ def open_writer(format: str, out: str, env: gym.Env, *, settings: dict[str, Any]
         return NpzWriter(out, env_id, metadata, on_saved)
     from fetch.dataset.writer import DatasetWriter, Header, package_versions
 
-    looks = {"looks": base.looks_mode} if getattr(base, "looks_mode", "plain") != "plain" else {}  # images need it
+    looks = {"looks": base.looks_mode} if base.looks_mode != "plain" else {}  # its images need it
     header = Header(env_id=env_id, env_kwargs={"reward_type": base.reward_type, **looks},
                     layout=recorded_layout(env, cameras, image_size, image_quality), settings=settings,
                     model_xml=base.model_xml(), model_hash=base.model_hash(), versions=package_versions(),

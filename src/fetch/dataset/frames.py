@@ -55,7 +55,7 @@ class StateRenderer:
         self.cameras = camera_names(model)
         self.width, self.height = width, height
         self.hide_goal = bool(env_kwargs.get("hide_goal", False))
-        self.random_looks = env_kwargs.get("looks", "plain") == "random"
+        self.random_looks = env.looks_mode == "random"
         # The same renderer and settings as `collect --cameras`: images match those recorded live.
         self._renderer = OffscreenRenderer(model, width, height, quality)
 

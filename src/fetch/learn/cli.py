@@ -12,7 +12,7 @@ from typing import Any
 from fetch._progress import said_if_slow
 from fetch.errors import FetchError
 from fetch.learn import TORCH_INSTALL, require_torch
-from fetch.learn.kinds import FINGER_SCALE, INPUTS, KINDS, POLICY_KINDS
+from fetch.learn.kinds import FINGER_SCALE, FINGER_SPAN, INPUTS, KINDS, POLICY_KINDS
 from fetch.learn.settings import ACCELERATORS, AUTO, CORRECTION_WEIGHT, PRECISIONS, TrainRequest, sees_pixels
 from fetch.looks import LOOKS
 from fetch.tasks import REGISTRATIONS, Training, mirroring_ids
@@ -79,7 +79,8 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seq-len", type=int, default=None, help="gru: training window [steps] (default 10)")
     p.add_argument("--finger-scale", type=float, default=None,
                    help=f"learn the fingers' action a[3] companded, |a[3]| up to this [m of finger target] "
-                        f"spanning [-1, 1] (default {FINGER_SCALE}, a finger's travel; cnn-chunk 0; 0: as recorded)")
+                        f"spanning +-{FINGER_SPAN}, the squeeze -1 (default {FINGER_SCALE}, a finger's travel; "
+                        f"cnn-chunk 0; 0: as recorded)")
     p.add_argument("--hidden", type=int, default=None, help="units per layer (default 256; gru 128)")
     p.add_argument("--layers", type=int, default=None, help="hidden layers (default 2; gru 1)")
     p.add_argument("--members", type=int, default=None,

@@ -107,8 +107,8 @@ class PolicySettings:
     cameras: tuple[str, ...] = ()
     """pixel policies: the cameras whose images it sees, in this order (the dataset's `<camera>_image`)."""
     finger_scale: float = FINGER_SCALE
-    """the fingers' action a[3] is learnt companded (`data.learnt_actions`): |a[3]| up to this spans [-1, 1]
-    and the rest of [-1, 1] the rest; 0: as recorded (runs saved before it existed)."""
+    """the fingers' action a[3] is learnt companded (`data.learnt_actions`): |a[3]| up to this spans
+    +-`finger_span` and the rest of [-1, 1] the rest; 0: as recorded (runs saved before it existed)."""
     finger_span: float = FINGER_SPAN
     """companded, what +-`finger_scale` of a[3] is learnt as (the squeeze as twice it); runs saved before it
     existed: 1."""
