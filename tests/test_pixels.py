@@ -248,7 +248,8 @@ def test_pixels_from_a_dataset_without_images_says_how_to_make_them(torch, blind
 def test_a_pixel_run_takes_its_kinds_training_defaults_unless_told(seen: pathlib.Path) -> None:
     """`--inputs pixels` (or `--policy cnn-chunk`) trains with the pixel kind's steps, batch and threads (one
     per core), seeing every camera the dataset has; flags given override them. No torch needed to plan."""
-    from fetch.learn.data import load_demos
+    from fetch.dataset.habits import layout_of
+    from fetch.learn.data import load_demos, velocity_columns
     from fetch.learn.kinds import kind
     from fetch.learn.settings import TrainRequest, cores, plan
 
@@ -267,6 +268,15 @@ def test_a_pixel_run_takes_its_kinds_training_defaults_unless_told(seen: pathlib
     state = plan(TrainRequest(policy="mlp-chunk"), demos)
     assert (state.config.batch_size, state.config.threads, state.policy.cameras) == (256, 1, ())
     assert state.config.precision == "fp32"
+    # PickPlace's line in the task table: a state policy does not see velocities, a pixel policy sees the
+    # robot's own (what each measured best), unless told.
+    layout = layout_of(demos.env_id)
+    velocities = set(velocity_columns(layout))
+    own_velocities = {i for name in ("grip_velp", "gripper_vel") for i in range(layout[name].start, layout[name].stop)}
+    assert velocities <= set(plan(TrainRequest(), demos).policy.blind)
+    assert not own_velocities & set(plan(TrainRequest(inputs="pixels"), demos).policy.blind)
+    assert own_velocities <= set(plan(TrainRequest(inputs="pixels", velocities=False), demos).policy.blind)
+    assert not velocities & set(plan(TrainRequest(velocities=True), demos).policy.blind)
 
 
 def test_auto_precision_is_bf16_where_the_cpu_computes_it_natively(torch, run: pathlib.Path,  # noqa: ANN001

@@ -30,6 +30,8 @@ class Training(NamedTuple):
     """also see the goal relative to the achieved goal and to the grip site."""
     velocities: bool = True
     """see the observation's velocities."""
+    pixel_velocities: bool | None = None
+    """a pixel policy (`--inputs pixels`) sees the robot's own velocities (None: as `velocities`)."""
     chunk: int | None = None
     """mlp-chunk: actions per prediction (None: the kind's default)."""
 
@@ -51,7 +53,8 @@ REGISTRATIONS: tuple[Registration, ...] = (
     Registration("Reach-v2", Reach, 50),
     Registration("Push-v2", Push, 50, Training(policy="mlp-chunk", steps=10000, mirror=True, members=5,
                                                goal_offsets=True, velocities=False, chunk=1)),
-    Registration("PickPlace-v2", PickPlace, 50, Training(steps=10000, mirror=True)),
+    Registration("PickPlace-v2", PickPlace, 50, Training(steps=10000, mirror=True, velocities=False,
+                                                         pixel_velocities=True)),
     Registration("Slide-v2", Slide, 50),
 )
 
