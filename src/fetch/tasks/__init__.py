@@ -29,7 +29,7 @@ class Training(NamedTuple):
     goal_offsets: bool = False
     """also see the goal relative to the achieved goal and to the grip site."""
     velocities: bool = True
-    """see the observation's velocities."""
+    """see the observation's velocities (a pixel policy: as `pixel_velocities` says)."""
     pixel_velocities: bool | None = None
     """a pixel policy (`--inputs pixels`) sees the robot's own velocities (None: as `velocities`)."""
     chunk: int | None = None
