@@ -95,8 +95,8 @@ def training_table() -> str:
         t = reg.training
         chunk = "the kind's" if t.chunk is None else str(t.chunk)
         velocities = "seen" if t.velocities else "not seen"
-        if t.pixel_velocities is not None and t.pixel_velocities != t.velocities:
-            velocities += f" ({'seen' if t.pixel_velocities else 'not seen'} by a pixel policy)"
+        if t.sees_velocities(pixels=True) != t.velocities:
+            velocities += f" ({'seen' if t.sees_velocities(pixels=True) else 'not seen'} by a pixel policy)"
         rows.append(f"| `{reg.env_id}` | {t.policy} | {t.steps} | {t.members} | {'yes' if t.goal_offsets else 'no'} "
                     f"| {velocities} | {'yes' if t.mirror else 'no'} | {chunk} |")
     return "\n".join(rows)

@@ -35,6 +35,10 @@ class Training(NamedTuple):
     chunk: int | None = None
     """mlp-chunk: actions per prediction (None: the kind's default)."""
 
+    def sees_velocities(self, pixels: bool) -> bool:
+        """Whether the task's state policy (`pixels` False) or pixel policy (True) sees velocities."""
+        return self.pixel_velocities if pixels and self.pixel_velocities is not None else self.velocities
+
 
 class Registration(NamedTuple):
     env_id: str
