@@ -177,7 +177,9 @@ def test_a_failed_attempt_renders_nothing_and_a_success_each_camera(source: path
 
 def test_a_source_whose_env_hides_the_goal_is_rendered_as_render_obs_renders_it(
         source: pathlib.Path, tmp_path: pathlib.Path) -> None:
-    """The source's env_kwargs (hide_goal among them) make the workers' renderer, as they make render-obs'."""
+    """The source's env_kwargs (hide_goal among them) make the workers' renderer, as they make render-obs', and the
+    generated dataset records them, so that what renders its states later (render-obs, replay, a policy's eval)
+    hides the goal as its images do."""
     hidden = tmp_path / "hidden"
     shutil.copytree(source, hidden)
     with h5py.File(hidden / "demos.hdf5", "r+") as f:
@@ -186,7 +188,9 @@ def test_a_source_whose_env_hides_the_goal_is_rendered_as_render_obs_renders_it(
         f["data"].attrs["env_args"] = json.dumps(env_args)
     out = tmp_path / "out"
     assert main(gen_argv(hidden, out, 1, "--workers", "1", SHORT, "--cameras", "front", "--image-size", str(SIZE))) == 0
-    with open_dataset(out) as ds, StateRenderer(ds.env_id, env_args["env_kwargs"], SIZE, SIZE, "fast") as renderer:
+    with open_dataset(out) as ds:
+        assert ds.env_kwargs == env_args["env_kwargs"]
+    with open_dataset(out) as ds, StateRenderer(ds.env_id, ds.env_kwargs, SIZE, SIZE, "fast") as renderer:
         arrays = ds.arrays(ds.demo_names[0])
         frames = renderer.frames(arrays["states"], "front")
         assert np.array_equal(arrays["obs/front_image"], frames[:-1])

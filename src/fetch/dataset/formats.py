@@ -55,8 +55,11 @@ def open_writer(format: str, out: str, env: gym.Env, *, settings: dict[str, Any]
         return NpzWriter(out, env_id, metadata, on_saved)
     from fetch.dataset.writer import DatasetWriter, Header, package_versions
 
-    looks = {"looks": base.looks_mode} if base.looks_mode != "plain" else {}  # its images need it
-    header = Header(env_id=env_id, env_kwargs={"reward_type": base.reward_type, **looks},
+    # What a dataset's states are rendered with later (render-obs, replay, a policy's eval) beside the reward:
+    # the looks where drawn, and the goal's marker where hidden, as the env that recorded them drew its images.
+    drawn = {"looks": base.looks_mode} if base.looks_mode != "plain" else {}
+    hidden = {"hide_goal": True} if base.hide_goal else {}
+    header = Header(env_id=env_id, env_kwargs={"reward_type": base.reward_type, **drawn, **hidden},
                     layout=recorded_layout(env, cameras, image_size, image_quality), settings=settings,
                     model_xml=base.model_xml(), model_hash=base.model_hash(), versions=package_versions(),
                     legacy_model_hash=base.legacy_model_hash())
