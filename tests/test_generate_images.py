@@ -188,9 +188,8 @@ def test_a_source_whose_env_hides_the_goal_is_rendered_as_render_obs_renders_it(
         f["data"].attrs["env_args"] = json.dumps(env_args)
     out = tmp_path / "out"
     assert main(gen_argv(hidden, out, 1, "--workers", "1", SHORT, "--cameras", "front", "--image-size", str(SIZE))) == 0
-    with open_dataset(out) as ds:
-        assert ds.env_kwargs == env_args["env_kwargs"]
     with open_dataset(out) as ds, StateRenderer(ds.env_id, ds.env_kwargs, SIZE, SIZE, "fast") as renderer:
+        assert ds.env_kwargs == env_args["env_kwargs"]
         arrays = ds.arrays(ds.demo_names[0])
         frames = renderer.frames(arrays["states"], "front")
         assert np.array_equal(arrays["obs/front_image"], frames[:-1])

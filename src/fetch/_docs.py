@@ -95,8 +95,9 @@ def training_table() -> str:
         t = reg.training
         chunk = "the kind's" if t.chunk is None else str(t.chunk)
         velocities = "seen" if t.velocities else "not seen"
-        if t.sees_velocities(pixels=True) != t.velocities:
-            velocities += f" ({'seen' if t.sees_velocities(pixels=True) else 'not seen'} by a pixel policy)"
+        pixel = t.sees_velocities(pixels=True)
+        if pixel != t.velocities:
+            velocities += f" ({'seen' if pixel else 'not seen'} by a pixel policy)"
         rows.append(f"| `{reg.env_id}` | {t.policy} | {t.steps} | {t.members} | {'yes' if t.goal_offsets else 'no'} "
                     f"| {velocities} | {'yes' if t.mirror else 'no'} | {chunk} |")
     return "\n".join(rows)
