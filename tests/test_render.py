@@ -124,3 +124,34 @@ def test_a_render_pool_removes_the_directories_that_killed_processes_left(tmp_pa
         assert pool._dir.parent == tmp_path and pool._dir.name.startswith(f"{DIR_PREFIX}{os.getpid()}-")
         assert not stale.exists() and running.exists() and other.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([running.name, other.name])
+
+
+def test_render_ahead_closed_early_leaves_cancelling_its_jobs_to_the_pool(monkeypatch) -> None:  # noqa: ANN001
+    """A consumer that stops early (Ctrl-C in `render-obs`) closes render_ahead with demos still waiting.
+    It cancelled their futures itself, and on CPython 3.11 a future cancelled from outside that the pool's
+    thread has not yet seen when the pool breaks (its workers terminated by the close) ends that thread
+    with InvalidStateError and a traceback (CI, once). The pool's shutdown cancels them instead."""
+    import concurrent.futures
+    import threading
+
+    from fetch.dataset.render_ahead import render_ahead
+
+    callers: list[str] = []
+    cancel = concurrent.futures.Future.cancel
+
+    def recorded(future: concurrent.futures.Future) -> bool:
+        callers.append(threading.current_thread().name)
+        return cancel(future)
+
+    errors: list[BaseException | None] = []
+    monkeypatch.setattr(concurrent.futures.Future, "cancel", recorded)
+    monkeypatch.setattr(threading, "excepthook", lambda args: errors.append(args.exc_value))
+    env = gym.make("Reach-v2")
+    env.reset(seed=0)
+    states = np.stack([env.unwrapped.get_state()] * 5)
+    env.close()
+    images = render_ahead("Reach-v2", {}, 16, 2, ((f"demo_{i}", states, i) for i in range(12)), ("front",))
+    assert next(images)["front"].shape == (5, 16, 16, 3)
+    images.close()
+    assert threading.main_thread().name not in callers
+    assert errors == []

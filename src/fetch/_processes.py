@@ -51,7 +51,12 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> No
     """Shut a pool of workers down; with `abandon` (jobs still running whose results are not wanted),
     terminate its workers rather than wait for them. A worker that finishes a job while the pool
     shuts down writes its result to a pipe that nothing reads any more, and waits there for good, and
-    so does the interpreter's exit, which joins it (a double Ctrl-C hung `render-obs` and `generate`)."""
+    so does the interpreter's exit, which joins it (a double Ctrl-C hung `render-obs` and `generate`).
+
+    Cancel a pool's futures only this way (`cancel_futures`: the pool's own thread cancels them). On
+    CPython 3.11, a future cancelled from outside that the pool's thread has not yet seen when the pool
+    breaks (its workers terminated here, or one died) ends that thread with InvalidStateError, a traceback
+    on stderr, before it terminates the other workers (a Ctrl-C in `render-obs`, in CI)."""
     workers = list((getattr(pool, "_processes", None) or {}).values())  # private: CPython 3.8-3.13
     results = getattr(pool, "_result_queue", None)  # private too; shutdown lets go of it
     pool.shutdown(wait=not abandon, cancel_futures=True)

@@ -67,7 +67,4 @@ def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: in
             pending.popleft()
             yield images
     finally:
-        for waiting in pending:
-            if waiting.future is not None:
-                waiting.future.cancel()
-        pool.close()
+        pool.close()  # its own thread cancels the demos not yet started (see stop_pool)
