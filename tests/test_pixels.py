@@ -268,14 +268,14 @@ def test_a_pixel_run_takes_its_kinds_training_defaults_unless_told(seen: pathlib
     state = plan(TrainRequest(policy="mlp-chunk"), demos)
     assert (state.config.batch_size, state.config.threads, state.policy.cameras) == (256, 1, ())
     assert state.config.precision == "fp32"
-    # PickPlace's line in the task table: a state policy does not see velocities, a pixel policy sees the
-    # robot's own (what each measured best), unless told.
+    # PickPlace's line in the task table: neither a state policy nor a pixel policy sees velocities (what
+    # each measured best from demos with rests in them), unless told.
     layout = layout_of(demos.env_id)
     velocities = set(velocity_columns(layout))
     own_velocities = {i for name in ("grip_velp", "gripper_vel") for i in range(layout[name].start, layout[name].stop)}
     assert velocities <= set(plan(TrainRequest(), demos).policy.blind)
-    assert not own_velocities & set(plan(TrainRequest(inputs="pixels"), demos).policy.blind)
-    assert own_velocities <= set(plan(TrainRequest(inputs="pixels", velocities=False), demos).policy.blind)
+    assert own_velocities <= set(plan(TrainRequest(inputs="pixels"), demos).policy.blind)
+    assert not own_velocities & set(plan(TrainRequest(inputs="pixels", velocities=True), demos).policy.blind)
     assert not velocities & set(plan(TrainRequest(velocities=True), demos).policy.blind)
 
 

@@ -95,9 +95,6 @@ def training_table() -> str:
         t = reg.training
         chunk = "the kind's" if t.chunk is None else str(t.chunk)
         velocities = "seen" if t.velocities else "not seen"
-        pixel = t.sees_velocities(pixels=True)
-        if pixel != t.velocities:
-            velocities += f" ({'seen' if pixel else 'not seen'} by a pixel policy)"
         rows.append(f"| `{reg.env_id}` | {t.policy} | {t.steps} | {t.members} | {'yes' if t.goal_offsets else 'no'} "
                     f"| {velocities} | {'yes' if t.mirror else 'no'} | {chunk} |")
     return "\n".join(rows)

@@ -92,11 +92,10 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                         "(6 more inputs; default off; --policy auto: on for "
                         f"{_auto_tasks(lambda t: t.goal_offsets)})")
     p.add_argument("--velocities", action=argparse.BooleanOptionalAction, default=None,
-                   help="let the policy see the velocities in the observation (default on; --policy auto: off "
-                        f"for {_auto_tasks(lambda t: not t.velocities)}; a pixel policy's as that but for "
-                        f"{_auto_tasks(lambda t: t.sees_velocities(pixels=True) != t.velocities)}): without them it "
-                        "acts on where things are, and does not learn to go on doing what it did a moment ago from "
-                        "demos of uneven pace (docs/operators.md)")
+                   help="let the policy see the velocities in the observation (a pixel policy: the robot's own; "
+                        f"default on; --policy auto: off for {_auto_tasks(lambda t: not t.velocities)}): without them "
+                        "it acts on where things are, and does not learn to go on doing what it did a moment ago "
+                        "from demos of uneven pace (docs/operators.md)")
     p.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
                    help="also learn from each demo's mirror image in the vertical plane through the start "
                         f"(tasks symmetric about it: {', '.join(mirroring_ids())}; "

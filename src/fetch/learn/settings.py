@@ -214,7 +214,7 @@ def _policy(request: TrainRequest, demos: Demos) -> PolicySettings:
     if request.policy == AUTO:
         auto = task_training(demos.env_id)
         name = auto.policy if request.inputs == "state" else next(k.name for k in KINDS if k.inputs == "pixels")
-        chosen = {"goal_offsets": auto.goal_offsets, "velocities": auto.sees_velocities(request.inputs != "state")}
+        chosen = {"goal_offsets": auto.goal_offsets, "velocities": auto.velocities}
         if request.inputs == "state":
             chosen["members"] = auto.members  # an ensemble of CNNs would take that many times as long
         if auto.chunk is not None and "chunk" in kind(name).own:

@@ -29,15 +29,9 @@ class Training(NamedTuple):
     goal_offsets: bool = False
     """also see the goal relative to the achieved goal and to the grip site."""
     velocities: bool = True
-    """see the observation's velocities (a pixel policy: as `pixel_velocities` says)."""
-    pixel_velocities: bool | None = None
-    """a pixel policy (`--inputs pixels`) sees the robot's own velocities (None: as `velocities`)."""
+    """see the observation's velocities (a pixel policy: the robot's own)."""
     chunk: int | None = None
     """mlp-chunk: actions per prediction (None: the kind's default)."""
-
-    def sees_velocities(self, pixels: bool) -> bool:
-        """Whether the task's state policy (`pixels` False) or pixel policy (True) sees velocities."""
-        return self.pixel_velocities if pixels and self.pixel_velocities is not None else self.velocities
 
 
 class Registration(NamedTuple):
@@ -57,8 +51,7 @@ REGISTRATIONS: tuple[Registration, ...] = (
     Registration("Reach-v2", Reach, 50),
     Registration("Push-v2", Push, 50, Training(policy="mlp-chunk", steps=10000, mirror=True, members=5,
                                                goal_offsets=True, velocities=False, chunk=1)),
-    Registration("PickPlace-v2", PickPlace, 50, Training(steps=10000, mirror=True, velocities=False,
-                                                         pixel_velocities=True)),
+    Registration("PickPlace-v2", PickPlace, 50, Training(steps=10000, mirror=True, velocities=False)),
     Registration("Slide-v2", Slide, 50),
 )
 
