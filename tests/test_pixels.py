@@ -59,16 +59,18 @@ def _error(capsys: pytest.CaptureFixture[str]) -> str:
 
 
 def test_a_pixel_policy_records_what_it_sees(torch, run: pathlib.Path) -> None:  # noqa: ANN001
-    from fetch.learn.data import PROPRIOCEPTION, unseen_by_pixels
+    from fetch.learn.data import PROPRIOCEPTION, unseen_by_pixels, velocity_columns
 
     state = torch.load(run / "checkpoint.pt", weights_only=True)
     policy = state["policy"]
     assert policy["kind"] == "cnn-chunk" and tuple(policy["cameras"]) == ("front", "wrist")
     assert policy["image_size"] == SIZE and policy["image_quality"] == "fast"  # the data's (collect's default)
     layout = gym.make("PickPlace-v2").unwrapped.observation_layout
-    seen = {i for name in PROPRIOCEPTION for i in range(layout[name].start, layout[name].stop)}
-    assert set(policy["blind"]) == set(unseen_by_pixels(layout, policy["goal_offsets"]))
-    assert set(range(25)) - set(policy["blind"]) == seen  # the readings only; the goal (25-27) stays seen
+    readings = {i for name in PROPRIOCEPTION for i in range(layout[name].start, layout[name].stop)}
+    velocities = set(velocity_columns(layout))  # PickPlace's line: not seen, by a pixel policy either
+    assert set(policy["blind"]) == set(unseen_by_pixels(layout, policy["goal_offsets"])) | velocities
+    # the readings' positions only (the hand's, the fingers' opening); the goal (25-27) stays seen
+    assert set(range(25)) - set(policy["blind"]) == readings - velocities and readings - velocities
     assert not {25, 26, 27} & set(policy["blind"])
 
 
