@@ -56,7 +56,8 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> No
     Cancel a pool's futures only this way (`cancel_futures`: the pool's own thread cancels them). On
     CPython 3.11, a future cancelled from outside that the pool's thread has not yet seen when the pool
     breaks (its workers terminated here, or one died) ends that thread with InvalidStateError, a traceback
-    on stderr, before it terminates the other workers (a Ctrl-C in `render-obs`, in CI)."""
+    on stderr, before it terminates the other workers (a Ctrl-C in `render-obs`, in CI; CPython gh-107219,
+    fixed upstream in 2023 but not in 3.11.7)."""
     workers = list((getattr(pool, "_processes", None) or {}).values())  # private: CPython 3.8-3.13
     results = getattr(pool, "_result_queue", None)  # private too; shutdown lets go of it
     pool.shutdown(wait=not abandon, cancel_futures=True)
