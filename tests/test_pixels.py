@@ -252,7 +252,7 @@ def test_a_pixel_run_takes_its_kinds_training_defaults_unless_told(seen: pathlib
     per core), seeing every camera the dataset has; flags given override them. No torch needed to plan."""
     from fetch.dataset.habits import layout_of
     from fetch.learn.data import load_demos, velocity_columns
-    from fetch.learn.kinds import kind
+    from fetch.learn.kinds import FINGER_SCALE, kind
     from fetch.learn.settings import TrainRequest, cores, plan
 
     demos = load_demos(seen, images=True)
@@ -279,6 +279,9 @@ def test_a_pixel_run_takes_its_kinds_training_defaults_unless_told(seen: pathlib
     assert own_velocities <= set(plan(TrainRequest(inputs="pixels"), demos).policy.blind)
     assert not own_velocities & set(plan(TrainRequest(inputs="pixels", velocities=True), demos).policy.blind)
     assert not velocities & set(plan(TrainRequest(velocities=True), demos).policy.blind)
+    # The pixel policy learns the fingers' action companded, as the state kinds do, unless told.
+    assert plan(TrainRequest(inputs="pixels"), demos).policy.finger_scale == FINGER_SCALE > 0
+    assert plan(TrainRequest(inputs="pixels", finger_scale=0.0), demos).policy.finger_scale == 0.0
 
 
 def test_auto_precision_is_bf16_where_the_cpu_computes_it_natively(torch, run: pathlib.Path,  # noqa: ANN001

@@ -80,7 +80,7 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--finger-scale", type=float, default=None,
                    help=f"learn the fingers' action a[3] companded, |a[3]| up to this [m of finger target] "
                         f"spanning +-{FINGER_SPAN}, the squeeze -1 (default {FINGER_SCALE}, a finger's travel; "
-                        f"cnn-chunk 0; 0: as recorded)")
+                        f"0: as recorded)")
     p.add_argument("--hidden", type=int, default=None, help="units per layer (default 256; gru 128)")
     p.add_argument("--layers", type=int, default=None, help="hidden layers (default 2; gru 1)")
     p.add_argument("--members", type=int, default=None,
