@@ -10,8 +10,10 @@
    intent, carried out with that style's habits: pace, pauses, a missed grasp, gripper habits,
    approach paths; docs/operators.md);
 2. `gym-fetch generate` multiplies them into `--generated` demos (with `--inputs pixels`, rendering the
-   front and wrist cameras' images of each in its workers, at `--image-quality`);
-3. `gym-fetch train` with its defaults (with `--inputs pixels`, the pixel policy: `train --inputs pixels`);
+   front and wrist cameras' images of each in its workers, at `--image-quality`): a `--tight` share of them
+   (default 0.2) from the starts where the object stands close beside something (`generate --starts tight`,
+   a second dataset, `generated-tight`), where the task has such starts, the rest from every start;
+3. `gym-fetch train` with its defaults on both (with `--inputs pixels`, the pixel policy: `train --inputs pixels`);
 4. `gym-fetch eval --episodes 100` on seeds disjoint from the data's.
 Each stage is skipped when its output exists (run again after an interruption). Prints the time of
 each stage and the success with its 95 % interval. Bar: >= 90 % within 30 minutes on 2 cores.
@@ -23,6 +25,7 @@ import argparse
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 import time
@@ -91,6 +94,9 @@ def main() -> None:
     parser.add_argument("--env", default="PickPlace-v2")
     parser.add_argument("--demos", type=int, default=10)
     parser.add_argument("--generated", type=int, default=1000)
+    parser.add_argument("--tight", type=float, default=0.2,
+                        help="the share of --generated made from tight starts (generate --starts tight), where the "
+                             "task has any (default %(default)s; 0: none)")
     parser.add_argument("--style", default="standin",
                         help="the stand-in operator's way of driving (tests/operators.py STYLES; default standin)")
     parser.add_argument("--seed", type=int, default=0, help="the collection's first reset seed and the operator's")
@@ -118,6 +124,7 @@ def main() -> None:
     timing_file = root / "timing.json"
     timing = json.loads(timing_file.read_text()) if timing_file.exists() else {}
     human, generated, run, result = root / "human", root / "generated", root / "run", root / "eval.json"
+    tight = root / "generated-tight"
     print(machine_line("torch"))
     seeing = f"pixels, {args.image_size} px {args.image_quality}" if args.inputs == "pixels" else "state"
     print(f"{args.env}, {args.demos} pad demos -> {args.generated} generated -> train ({seeing}) -> eval "
@@ -127,13 +134,25 @@ def main() -> None:
         timing_file.write_text(json.dumps(timing))
     if "generate" not in timing:
         noise = [] if args.generate_noise is None else ["--noise", str(args.generate_noise)]
-        timing["generate"] = gym_fetch("generate", "--source", str(human), "--out", str(generated),
-                                       "--demos", str(args.generated), "--workers", str(args.workers), *noise,
-                                       *cameras, *args.generate_args.split())
+        common = ["--source", str(human), "--workers", str(args.workers), *noise, *cameras, *args.generate_args.split()]
+        n_tight = round(args.tight * args.generated)
+        started = time.perf_counter()
+        if n_tight:  # a task without tight starts says so and makes none (resumes like any generate)
+            made = subprocess.run([sys.executable, "-m", "fetch.cli", "generate", "--starts", "tight", "--out",
+                                   str(tight), "--demos", str(n_tight), *common]).returncode == 0
+            if not made and any((tight / "episodes").glob("*")):
+                raise SystemExit(f"generate --starts tight into {tight} failed")
+            if not made:
+                shutil.rmtree(tight, ignore_errors=True)
+                print(f"{args.env}: no tight starts; all {args.generated} demos from every start", flush=True)
+        gym_fetch("generate", "--out", str(generated), "--demos",
+                  str(args.generated - (n_tight if tight.exists() else 0)), *common)
+        timing["generate"] = time.perf_counter() - started
         timing_file.write_text(json.dumps(timing))
     if "train" not in timing:
         inputs = ["--inputs", "pixels"] if args.inputs == "pixels" else []
-        timing["train"] = gym_fetch("train", str(generated), "--out", str(run), *inputs, *args.train_args.split())
+        data = [str(generated)] + ([str(tight)] if tight.exists() else [])
+        timing["train"] = gym_fetch("train", *data, "--out", str(run), *inputs, *args.train_args.split())
         timing_file.write_text(json.dumps(timing))
     if "eval" not in timing:
         timing["eval"] = gym_fetch("eval", str(run), "--episodes", str(args.episodes), "--json", str(result))

@@ -150,11 +150,53 @@ def test_generate_narrows_the_approach_only_beside_something(fit: bool) -> None:
             block = beside_the_bin(generator.env, gap)
             generator._obs, _ = base.observe()
             start = block + [0.0, 0.0, 0.15]
-            _, grips, openings = generator.plan(segment, Frame(block, 0.0), start, scene.loose("block"), body)
+            _, grips, openings, fitted = generator.plan(segment, Frame(block, 0.0), start, scene.loose("block"), body)
             assert openings is not None and np.all(grips == 1.0)
             room = finger_room(base.model, base.data, scene.fingers, body, block, block, 0.0, OPEN)
             assert (room is not None) == near
+            assert fitted == (fit and near)
+            assert generator.tight() == near
             expected = room if fit and room is not None else OPEN
             assert np.allclose(openings, expected, atol=1e-6), (gap, openings.max(), expected)
     finally:
         generator.close()
+
+
+def test_a_fitted_approach_steadies_the_fingers_noise_and_an_unfitted_one_does_not() -> None:
+    """`Options.steady_fit`: a step of a fitted approach perturbs a[3] by the hand's metres (noise 0.1: 0.005),
+    any other step by `finger_noise` (here the default, 0.1), from the same random draws."""
+    generator = Generator("Bin-place-v2", {}, [[approach(np.array([1.3, 0.6, 0.42]))] * 3],
+                          Options(max_steps=50), seed=0)
+    base = generator.base
+    try:
+        block = beside_the_bin(generator.env, 0.02)
+        generator._obs, _ = base.observe()
+        generator.buffer.begin(generator._obs, base.get_state())
+        for steady, std in ((True, 0.1 * ACTION_STEP), (False, 0.1)):
+            clean = generator._fingers(1.0, 0.03)
+            draws = np.random.default_rng(7).normal(0.0, 1.0, 4)
+            generator._step(block + [0.0, 0.0, 0.1], 1.0, 0.03, np.random.default_rng(7), 0, steady)
+            assert np.isclose(base.last_action[3], np.clip(clean + std * draws[3], -1, 1), atol=1e-6), steady
+    finally:
+        generator.close()
+
+
+def test_tight_starts_are_the_only_ones_attempted_when_asked() -> None:
+    """`Options.starts` "tight": an attempt from a start where the block is not beside the bin is skipped (not
+    made, no steps), and one from a start where it is, is made; "all" makes both."""
+    segment = approach(np.array([1.3, 0.6, 0.42]))
+    made: dict[str, list[bool]] = {}
+    tight: list[bool] = []
+    for starts in ("all", "tight"):
+        generator = Generator("Bin-place-v2", {}, [[segment] * 3], Options(max_steps=8, starts=starts), seed=0)
+        try:
+            results = [generator.attempt(n) for n in range(40)]
+            made[starts] = [r.made for r in results]
+            if starts == "tight":
+                for n, r in enumerate(results):
+                    generator.env.reset(seed=n)
+                    tight.append(generator.tight())
+                    assert r.made or (r.steps == 0 and r.demo is None and not r.choices)
+        finally:
+            generator.close()
+    assert all(made["all"]) and made["tight"] == tight and 0 < sum(tight) < len(tight), tight

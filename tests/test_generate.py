@@ -25,7 +25,8 @@ from fetch.cli import main
 from fetch.dataset import open_dataset
 from fetch.experts import make_expert
 from fetch.generate import run
-from fetch.generate.attempt import CLEARANCE, FINGER_WIDTH, FINGERTIPS, Generator, Options, Result, pass_over
+from fetch.generate.attempt import Generator, Options, Result
+from fetch.generate.room import CLEARANCE, FINGER_WIDTH, FINGERTIPS, pass_over
 from fetch.generate.segments import Segment, annotate, from_frame, to_frame
 from fetch.generate.sources import load_sources
 from fetch.generate.workers import RESTARTS, Work
@@ -148,7 +149,7 @@ def test_a_place_carried_over_to_a_lower_goal_does_not_press_the_hand_into_the_t
     generator = Generator("PickPlace-v2", {}, [[segment] * 3], Options(max_steps=50), seed=0)
     try:
         new_goal = Frame(np.array([1.40, 0.70, table]), 0.0)
-        path, grips, _ = generator.plan(segment, new_goal, np.array([1.25, 0.80, table + 0.03]))
+        path, grips, _, _ = generator.plan(segment, new_goal, np.array([1.25, 0.80, table + 0.03]))
     finally:
         generator.close()
     arrive = len(path) - (len(targets) - segment.closest)
@@ -560,8 +561,8 @@ def test_a_source_that_stopped_short_of_the_goal_is_carried_the_rest_of_the_way(
     generator = Generator("PickPlace-v2", {}, [[plain] * 3], Options(max_steps=50), seed=0)
     try:
         new_goal = Frame(np.array([1.40, 0.70, table + 0.05]), 0.0)
-        a, _, _ = generator.plan(plain, new_goal, held)
-        b, _, _ = generator.plan(settled, new_goal, held)
+        a = generator.plan(plain, new_goal, held).path
+        b = generator.plan(settled, new_goal, held).path
     finally:
         generator.close()
     assert np.allclose(b[-1] - a[-1], [0.04, 0.0, 0.0])
@@ -580,8 +581,8 @@ def test_a_drawer_pushed_short_of_its_goal_is_pushed_the_rest_of_the_way_over_th
     settled = dataclasses.replace(plain, settle=np.array([-0.04, 0.0, 0.0]), settle_by=len(targets) - 1)
     generator = Generator("Drawer-close-v2", {}, [[plain] * 2], Options(max_steps=50), seed=0)
     try:
-        a, _, _ = generator.plan(plain, handle, held)
-        b, _, _ = generator.plan(settled, handle, held)
+        a = generator.plan(plain, handle, held).path
+        b = generator.plan(settled, handle, held).path
     finally:
         generator.close()
     shift = (b - a)[:, 0]
@@ -604,9 +605,9 @@ def test_a_drawer_is_pushed_to_the_attempts_goal_not_to_where_the_sources_would_
         goal = generator._obs["desired_goal"].copy()
         at_goal = dataclasses.replace(plain, goal=to_frame(handle, goal))  # the source's goal where ours is
         short = dataclasses.replace(plain, goal=to_frame(handle, goal - [0.03, 0.0, 0.0]))
-        a, _, _ = generator.plan(plain, handle, held)
-        b, _, _ = generator.plan(at_goal, handle, held)
-        c, _, _ = generator.plan(short, handle, held)
+        a = generator.plan(plain, handle, held).path
+        b = generator.plan(at_goal, handle, held).path
+        c = generator.plan(short, handle, held).path
     finally:
         generator.close()
     assert np.allclose(a, b)

@@ -19,7 +19,7 @@ from fetch.dataset.frames import StateRenderer
 from fetch.dataset.habits import SQUEEZE
 from fetch.errors import FetchError, UnknownNameError
 from fetch.experts.base import Expert
-from fetch.generate.room import finger_room
+from fetch.generate.room import finger_room, pass_over
 from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
 from fetch.rendering import DEFAULT_IMAGE_QUALITY
 from fetch.robot import ACTION_STEP, dart_std
@@ -29,6 +29,11 @@ from fetch.tasks.subtasks import Frame, Grasped, Lifted, Scene
 SELECTIONS = ("nearest", "random")
 """How a source segment is chosen for each subtask: among the `nearest_k` whose hand started
 closest to where the hand is now (in the subtask's frame), or uniformly."""
+STARTS = ("all", "tight")
+"""Which of the env's starts attempts are made from: every one, or only those where the first object stands so
+close beside something along the fingers' axis that fully open fingers would come down on it (`Generator.tight`)."""
+WIDEST = 0.05
+"""[m] a finger's opening fully open (its travel): how wide a pad's X opens it."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,6 +74,15 @@ class Options:
     """open the fingers, coming down on an object nothing has touched yet, no wider than puts each midway
     between the object and whatever stands beside it (a bin's wall: `finger_room`), rather than as wide
     as the source opened them; where nothing is near, as the source did."""
+    steady_fit: bool = True
+    """where `fit_opening` narrowed an approach, the noise on the fingers during it is the hand's metres
+    (`noise * ACTION_STEP`): at `finger_noise`'s 0.1 they swing fully open and shut whatever opening is asked
+    for, a finger lands on the wall and the source's squeeze, replayed on time, closes 4 cm above the object
+    (38 % of Bin-place's demos that start beside the bin, against 9 % steadied; docs/generate.md)."""
+    starts: str = "all"
+    """`STARTS`: "tight" makes attempts only from the starts where the first object stands close beside
+    something (a bin's wall), skipping the others, for a second dataset of those rare starts to train on
+    beside the first (docs/generate.md, "Starts beside a wall")."""
     blend_fraction: float = 0.75
     """the offset is blended out over this fraction of the steps before the segment's closest
     approach to its reference (so the grasp or placement itself is replayed exactly)."""
@@ -76,6 +90,8 @@ class Options:
     def __post_init__(self) -> None:
         if self.selection not in SELECTIONS:
             raise UnknownNameError("selection", self.selection, SELECTIONS)
+        if self.starts not in STARTS:
+            raise UnknownNameError("starts", self.starts, STARTS)
         for name, value, low in (("max_steps", self.max_steps, 1), ("success_hold_steps", self.success_hold_steps, 1),
                                  ("nearest_k", self.nearest_k, 1), ("retries", self.retries, 0)):
             if value is not None and value < low:
@@ -111,35 +127,21 @@ class Result(NamedTuple):
     """per camera asked for, the (T + 1, size, size, 3) uint8 images of the demo's `states` (rendered
     where the attempt was made; `obs/` holds all but the last, `next_obs/` all but the first); none
     for a failed attempt."""
+    made: bool = True
+    """False: its start was skipped (`Options.starts`), no attempt was made from it."""
 
 
-FINGERTIPS = 0.02
-"""[m] how far the fingers reach below the grip site (1.85 cm in the robot's model)."""
-FINGER_WIDTH = 0.015
-"""[m] how far the closed fingers reach sideways from the grip site."""
-CLEARANCE = 0.01
-"""[m] the gap left between the fingertips and the top of an object the hand passes over."""
+class Plan(NamedTuple):
+    """A segment carried over to a new episode (`Generator.plan`)."""
 
-
-def pass_over(path: np.ndarray, centre: np.ndarray, radius: float, height: float) -> None:
-    """Lift the steps of `path` (N, 3) [m, world] that pass over a loose object (at `centre`, `radius`
-    and `height` [m] its extent) so that the fingertips clear it by `CLEARANCE`, and the steps either
-    side of them by half as much; in place. The steps that end the path over the object (coming down
-    to grasp it) are left as they are: only passes that leave it again are lifted. A person who goes
-    over a block to push it from behind does it with a centimetre to spare; carried over to another
-    block and perturbed, the same pass drags the block along, or off the table (docs/generate.md)."""
-    over = np.linalg.norm(path[:, :2] - centre[:2], axis=1) < radius + FINGER_WIDTH
-    arriving = int(np.argmin(over[::-1])) if not over.all() else len(over)  # the final run over it
-    passing = len(over) - arriving
-    if not over[:passing].any():
-        return
-    lift = np.zeros(len(path))
-    top = centre[2] + height + FINGERTIPS + CLEARANCE
-    lift[:passing] = np.where(over[:passing], np.maximum(top - path[:passing, 2], 0.0), 0.0)
-    spread = lift.copy()
-    spread[1:passing] = np.maximum(spread[1:passing], 0.5 * lift[:passing - 1])
-    spread[:passing - 1] = np.maximum(spread[:passing - 1], 0.5 * lift[1:passing])
-    path[:passing, 2] += spread[:passing]
+    path: np.ndarray
+    """(N, 3) [m] the hand's targets."""
+    grips: np.ndarray
+    """(N,) the source's finger commands."""
+    openings: np.ndarray | None
+    """(N,) [m] the finger openings they led to in the source (narrowed where `fitted`), or None."""
+    fitted: bool = False
+    """the openings were narrowed to the room beside the object (`Options.fit_opening`)."""
 
 
 def rng_for(seed: int, number: int) -> np.random.Generator:
@@ -168,6 +170,7 @@ class Generator:
         self.sources = sources
         self.options = options
         self._noise_std = dart_std(options.noise, options.finger_noise)
+        self._steady_std = dart_std(options.noise, min(options.finger_std, options.noise * ACTION_STEP))
         self.seed = seed
         self.env_kwargs, self.cameras, self.image_size = env_kwargs, cameras, image_size
         self.image_quality = image_quality
@@ -197,9 +200,8 @@ class Generator:
         return self.sources[int(nearest[int(rng.integers(len(nearest)))])][k]
 
     def plan(self, segment: Segment, frame: Frame, held: np.ndarray, loose: tuple[float, float] | None = None,
-             body: int = -1) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Targets (N, 3) [m], finger commands (N,) and the finger openings they led to in the source
-        (N,) [m] or None: the segment carried over to `frame`, with the
+             body: int = -1) -> Plan:
+        """The segment carried over to `frame`, with the
         hand's offset from its start blended out (MimicGen interpolates first; we spread the offset
         over the segment's approach, and prepend steps only when that would be too fast). `loose`:
         the extent (radius, height [m]) of the loose object at the frame's origin that the segment
@@ -237,12 +239,25 @@ class Generator:
         openings = None if segment.openings is None else \
             np.concatenate([np.full(n_pre, segment.openings[0]), segment.openings])
         if o.fit_opening and loose is not None and body >= 0 and openings is not None:
-            now = float(self._obs["observation"][self.base.observation_layout["gripper_state"]].mean())
             room = finger_room(self.base.model, self.base.data, self.scene.fingers, body, frame.pos, path[arrive],
-                               now, float(openings.max()))
+                               self._opening(), float(openings.max()))
             if room is not None:
-                openings = np.minimum(openings, room)
-        return path, grips, openings
+                return Plan(path, grips, np.minimum(openings, room), fitted=True)
+        return Plan(path, grips, openings)
+
+    def _opening(self) -> float:
+        """[m] the fingers' opening now."""
+        return float(self._obs["observation"][self.base.observation_layout["gripper_state"]].mean())
+
+    def tight(self) -> bool:
+        """Whether the first subtask's object, as the env has just reset it, stands so close beside something
+        along the fingers' axis that fully open fingers coming down over its centre would land on it."""
+        body = self._loose_body[0]
+        if body < 0:
+            return False
+        frame = self.subtasks[0].frame(self.scene, self.base.data)
+        return finger_room(self.base.model, self.base.data, self.scene.fingers, body, frame.pos, frame.pos,
+                           self._opening(), WIDEST) is not None
 
     def attempt(self, number: int) -> Result:
         """Attempt `number`: reset with seed + number, execute one segment per subtask. Where a grasp was
@@ -253,6 +268,8 @@ class Generator:
         rng = rng_for(self.seed, number)
         obs, info = env.reset(seed=seed)
         self._obs = obs
+        if o.starts == "tight" and not self.tight():
+            return Result(number, seed, False, 0, (), (), None, {}, made=False)
         buf.begin(obs, base.get_state())
         started = time.time()
         held_for, steps, grip, opening = 0, 0, 0.0, None
@@ -268,14 +285,15 @@ class Generator:
             segment = self.choose(k, frame, held, rng)
             choices.append((segment.demo, segment.start, segment.end, k))
             starts.append(steps)
-            path, grips, openings = self.plan(segment, frame, held, self._loose[k], self._loose_body[k])
+            path, grips, openings, fitted = self.plan(segment, frame, held, self._loose[k], self._loose_body[k])
+            steady = fitted and o.steady_fit
             # Judged at the end of a segment after the grasp that is not the last (the lift): a good grasp may
             # close only during it (the hand arrived late), and the last segment lets go by design.
             check = len(path) if retries < o.retries and 0 < k < len(self.subtasks) - 1 else 0
             again = None
             for i, (target, grip) in enumerate(zip(path, grips, strict=True)):
                 opening = None if openings is None else float(openings[i])
-                success, held_for = self._step(target, grip, opening, rng, held_for)
+                success, held_for = self._step(target, grip, opening, rng, held_for, steady)
                 steps += 1
                 if check and i + 1 >= check - 1:  # not held on two steps running: a finger's contact flickers
                     lost = self.lost(k)
@@ -326,13 +344,14 @@ class Generator:
         return {camera: self._renderer.frames(states, camera, seed) for camera in self.cameras}
 
     def _step(self, target: np.ndarray, grip: float, opening: float | None, rng: np.random.Generator,
-              held_for: int) -> tuple[bool, int]:
+              held_for: int, steady: bool = False) -> tuple[bool, int]:
+        """One step towards `target` with DART's noise (`steady`: on the fingers only the hand's metres)."""
         base, buf = self.base, self.buffer
         move = (target - held_grip(base)) / ACTION_STEP
         clean = np.append(np.clip(move, -1.0, 1.0), self._fingers(grip, opening)).astype(np.float32)
         action, label = clean, None
         if self._noise_std.any():  # DART: execute a perturbed action, label the clean one (`expert_actions`)
-            noise = rng.normal(0.0, 1.0, 4) * self._noise_std
+            noise = rng.normal(0.0, 1.0, 4) * (self._steady_std if steady else self._noise_std)
             action = clean.copy()
             action[:3] = np.clip(move + noise[:3], -1.0, 1.0)
             action[3] = np.clip(clean[3] + noise[3], -1.0, 1.0)

@@ -7,6 +7,7 @@ from typing import Any
 
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.dataset.reader import FILE_HELP
+from fetch.generate.attempt import STARTS
 from fetch.looks import LOOKS
 from fetch.rendering import CAMERAS, DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES, QUALITY_HELP
 
@@ -52,6 +53,13 @@ def add_generate_parser(sub: Any) -> None:
     g.add_argument("--fit-opening", action=argparse.BooleanOptionalAction, default=True,
                    help="coming down on an object, open the fingers no wider than puts each midway between it and "
                         "whatever stands beside it (a bin's wall), where the source opened them wider (default on)")
+    g.add_argument("--steady-fit", action=argparse.BooleanOptionalAction, default=True,
+                   help="where --fit-opening narrowed an approach, perturb the fingers during it by the hand's metres "
+                        "(--noise x 0.05), not --finger-noise, so that they come down as narrow as asked (default on)")
+    g.add_argument("--starts", default="all", choices=STARTS,
+                   help="all (default): attempts from every start the env draws; tight: only from those where the "
+                        "object stands close beside something along the fingers' axis (a bin's wall), skipping the "
+                        "rest: a second dataset of those rare starts to train on beside the first (docs/generate.md)")
     g.add_argument("--max-attempts", type=int, default=None, help="give up after this many (default 50 per demo)")
     g.add_argument("--cameras", default="",
                    help=f"record these cameras' images too, comma-separated ({', '.join(CAMERAS)}), rendered from "
@@ -76,7 +84,8 @@ def run_generate(args: argparse.Namespace) -> int:
 
     options = Options(max_steps=args.max_steps, success_hold_steps=args.success_hold_steps, selection=args.selection,
                       nearest_k=args.nearest_k, noise=args.noise, finger_noise=args.finger_noise,
-                      stop_on_success=args.stop_on_success, retries=args.retries, fit_opening=args.fit_opening)
+                      stop_on_success=args.stop_on_success, retries=args.retries, fit_opening=args.fit_opening,
+                      steady_fit=args.steady_fit, starts=args.starts)
     cameras = tuple(c.strip() for c in args.cameras.split(",") if c.strip())  # as collect's --cameras
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
                             workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray,

@@ -1,4 +1,5 @@
-"""How wide the fingers may open around an object before one of them comes down on something beside it.
+"""The room around an object: how wide the fingers may open before one of them comes down on something
+beside it (`finger_room`), and how high a hand passing over it goes (`pass_over`).
 
 A person who grasps a block standing next to a wall opens the hand just enough; a pad's X opens it fully
 (5 cm a finger), and carried over to a block beside the bin's wall, that open finger lands on the rim and
@@ -99,3 +100,32 @@ def finger_room(model: mujoco.MjModel, data: mujoco.MjData, fingers: tuple[int, 
     if not np.isfinite(room) or room < clear:
         return None  # nothing near, or the hand comes down so far off-centre that a finger would land on the object
     return float(room)
+
+
+FINGERTIPS = 0.02
+"""[m] how far the fingers reach below the grip site (1.85 cm in the robot's model)."""
+FINGER_WIDTH = 0.015
+"""[m] how far the closed fingers reach sideways from the grip site."""
+CLEARANCE = 0.01
+"""[m] the gap left between the fingertips and the top of an object the hand passes over."""
+
+
+def pass_over(path: np.ndarray, centre: np.ndarray, radius: float, height: float) -> None:
+    """Lift the steps of `path` (N, 3) [m, world] that pass over a loose object (at `centre`, `radius`
+    and `height` [m] its extent) so that the fingertips clear it by `CLEARANCE`, and the steps either
+    side of them by half as much; in place. The steps that end the path over the object (coming down
+    to grasp it) are left as they are: only passes that leave it again are lifted. A person who goes
+    over a block to push it from behind does it with a centimetre to spare; carried over to another
+    block and perturbed, the same pass drags the block along, or off the table (docs/generate.md)."""
+    over = np.linalg.norm(path[:, :2] - centre[:2], axis=1) < radius + FINGER_WIDTH
+    arriving = int(np.argmin(over[::-1])) if not over.all() else len(over)  # the final run over it
+    passing = len(over) - arriving
+    if not over[:passing].any():
+        return
+    lift = np.zeros(len(path))
+    top = centre[2] + height + FINGERTIPS + CLEARANCE
+    lift[:passing] = np.where(over[:passing], np.maximum(top - path[:passing, 2], 0.0), 0.0)
+    spread = lift.copy()
+    spread[1:passing] = np.maximum(spread[1:passing], 0.5 * lift[:passing - 1])
+    spread[:passing - 1] = np.maximum(spread[:passing - 1], 0.5 * lift[1:passing])
+    path[:passing, 2] += spread[:passing]

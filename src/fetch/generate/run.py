@@ -33,6 +33,8 @@ from fetch.rendering import DEFAULT_IMAGE_QUALITY, check_camera_list, check_imag
 MAX_SEED = 2**62
 LOW_YIELD = (200, 0.05)
 """After this many attempts, a success rate below this fraction is worth a word (Slide's strikes: 1.7 %)."""
+NO_TIGHT_START = 2000
+"""With `--starts tight`: skipped starts before the first tight one after which the task is taken to have none."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,6 +100,8 @@ class Summary:
     gave_up: bool = False
     startup: float = 0.0
     """[s] until the first attempt's result came back (starting workers, building their envs)."""
+    skipped: int = 0
+    """starts passed over without an attempt (`Options.starts`)."""
 
     @property
     def success_rate(self) -> float:
@@ -107,20 +111,24 @@ class Summary:
         rate = 60 * self.saved / self.seconds if self.seconds > 0 else 0.0
         text = (f"{self.attempts} attempts, {self.saved} saved this run ({self.total} in {self.out}), success rate "
                 f"{100 * self.success_rate:.0f}%, {rate:.0f} demos/min on {self.workers} worker(s)")
+        if self.skipped:
+            text += f"; {self.skipped} starts that were not tight skipped"
         return text + ("\ngave up: --max-attempts reached" if self.gave_up else "")
 
 
 def settings_of(sources: Sources, options: Options, seed: int) -> dict[str, Any]:
-    """What the dataset records as made it; a resumed run must match every field. `retries` 0, `fit_opening`
-    off and a `finger_noise` equal to `noise` are left out, so that a dataset generated before they existed
-    resumes with `--retries 0 --no-fit-opening --finger-noise <its noise>`."""
+    """What the dataset records as made it; a resumed run must match every field. `retries` 0, `fit_opening` and
+    `steady_fit` off, `starts` "all" and a `finger_noise` equal to `noise` are left out, so that a dataset generated
+    before they existed resumes with `--retries 0 --no-fit-opening --no-steady-fit --finger-noise <its noise>`."""
     recorded = dataclasses.asdict(options)
     recorded["finger_noise"] = options.finger_std
     if options.finger_std == options.noise:
         del recorded["finger_noise"]
-    for name in ("retries", "fit_opening"):
+    for name in ("retries", "fit_opening", "steady_fit"):
         if not recorded[name]:
             del recorded[name]
+    if recorded["starts"] == "all":
+        del recorded["starts"]
     return {"max_steps": options.max_steps, "success_hold_steps": options.success_hold_steps,
             "stop_on_success": options.stop_on_success, "ignore_env_done": False,
             "generate": {"source": sources.path, "source_fingerprint": sources.fingerprint,
@@ -196,16 +204,24 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
         summary.workers = backend.workers
         started = time.perf_counter()
         bar = _Bar(config.demos, have)
-        previous = last
+        previous, made = last, None  # made: attempts since the previous demo (None: unknown, since a resume)
         try:
             for result in backend.results(first):
+                writer.reserve_attempt()
+                if not result.made:
+                    summary.skipped += 1
+                    if summary.skipped >= NO_TIGHT_START and not summary.attempts:
+                        raise FetchError(f"none of {NO_TIGHT_START} starts of {sources.env_id} is tight (its object "
+                                         "close beside something along the fingers' axis): --starts tight makes "
+                                         "nothing on this task; use --starts all")
+                    continue
                 if not summary.attempts:
                     summary.startup = time.perf_counter() - started
-                writer.reserve_attempt()
                 summary.attempts += 1
+                made = None if made is None and previous is not None else (made or 0) + 1
                 if result.demo is not None:
-                    _commit(writer, result, previous)
-                    previous = result.number
+                    _commit(writer, result, previous, made)
+                    previous, made = result.number, 0
                     summary.successes += 1
                     summary.saved += 1
                     summary.total += 1
@@ -229,7 +245,9 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
     return summary
 
 
-def _commit(writer: Any, result: Result, previous: int | None) -> None:
+def _commit(writer: Any, result: Result, previous: int | None, made: int | None) -> None:
+    """Save `result`'s demo; `made`: attempts since the previous demo, this one included (None: count the attempt
+    numbers since `previous`, skipped starts included, as across a resume)."""
     demo = result.demo
     assert demo is not None
     demo.attrs.update(
@@ -237,7 +255,7 @@ def _commit(writer: Any, result: Result, previous: int | None) -> None:
         source_segments=json.dumps([[c[1], c[2]] for c in result.choices]),
         source_subtasks=json.dumps([c[3] for c in result.choices]),
         segment_starts=json.dumps(list(result.starts)),
-        generation_attempts=result.number - (-1 if previous is None else previous))
+        generation_attempts=made if made is not None else result.number - (-1 if previous is None else previous))
     for camera, frames in result.images.items():  # rendered in the worker: the writer renders none
         key = schema.image_key(camera)
         demo.arrays[f"obs/{key}"], demo.arrays[f"next_obs/{key}"] = frames[:-1], frames[1:]
