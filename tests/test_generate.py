@@ -415,22 +415,32 @@ def test_resume_with_other_settings_is_refused(source: pathlib.Path, serial: pat
 
 def test_options_added_later_are_recorded_only_when_on(source: pathlib.Path, serial: pathlib.Path,
                                                        tmp_path: pathlib.Path) -> None:
-    """`--retries 0 --no-fit-opening` records the settings as generate did before those options existed (so such
-    a dataset resumes with them), as does a `--finger-noise` equal to `--noise` (the default); the defaults
-    record the two, and another finger noise records that too."""
-    later = {"retries", "fit_opening"}
+    """`--retries 0 --no-fit-opening --no-steady-fit` records the settings as generate did before those options
+    existed (so such a dataset resumes with them), as does a `--finger-noise` equal to `--noise` (the default) and
+    `--starts all` (the default); the defaults record the three, and another finger noise records that too."""
+    later = {"retries", "fit_opening", "steady_fit"}
     with open_dataset(serial) as ds:
         recorded = ds.settings["generate"]
-        assert recorded["retries"] == 1 and recorded["fit_opening"] is True and "finger_noise" not in recorded
+        assert recorded["retries"] == 1 and recorded["fit_opening"] is True and recorded["steady_fit"] is True
+        assert "finger_noise" not in recorded and "starts" not in recorded
     before = tmp_path / "before"
     assert main(gen_argv(source, before, 2, "--workers", "1", "--retries", "0", "--no-fit-opening",
-                         "--finger-noise", "0.1")) == 0
+                         "--no-steady-fit", "--finger-noise", "0.1")) == 0
     with open_dataset(before) as ds:
         assert set(ds.settings["generate"]) == set(recorded) - later
     metres = tmp_path / "metres"
     assert main(gen_argv(source, metres, 2, "--workers", "1", "--finger-noise", "0.005")) == 0
     with open_dataset(metres) as ds:
         assert ds.settings["generate"]["finger_noise"] == 0.005
+
+
+def test_tight_starts_on_a_task_without_any_is_one_error(source: pathlib.Path, tmp_path: pathlib.Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """PickPlace's block never stands beside anything: `--starts tight` says so in one line, naming the choice
+    that works, rather than skipping starts for ever."""
+    assert main(gen_argv(source, tmp_path / "tight", 2, "--workers", "1", "--starts", "tight")) == 2
+    err = capsys.readouterr().err.strip()
+    assert "PickPlace-v2 is tight" in err and "use --starts all" in err and len(err.splitlines()) == 1
 
 
 def test_a_missed_grasp_is_made_again_from_where_the_hand_is(source: pathlib.Path) -> None:
