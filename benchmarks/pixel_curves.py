@@ -4,9 +4,10 @@
         [--results /tmp/gym-fetch-learning-curves] [--seeds 0,1,2] [--limit K]
 
 The demos are those `benchmarks.mission --env TASK --inputs pixels --dir /tmp/mission` generated for a task
-(the stand-in's 10 pad demos multiplied to 1000 by `gym-fetch generate --cameras front,wrist --image-size 84`,
-drawn "fast"; 900 of them in mask/train): run that first. Each run trains, with `gym-fetch train`'s defaults,
-on the first N demos of mask/train (`DEMOS`: 10, 100 and all 900) either the pixel policy (`--inputs pixels`)
+(the stand-in's 10 pad demos multiplied by `gym-fetch generate --cameras front,wrist --image-size 84`, drawn
+"fast", from every start: 900 of them in mask/train, 720 where the mission made a fifth of its 1000 from tight
+starts, a dataset of its own that this does not use): run that first. Each run trains, with `gym-fetch train`'s
+defaults, on the first N demos of mask/train (`DEMOS`: 10, 100 and all) either the pixel policy (`--inputs pixels`)
 or the state policy (`--policy auto`), with training seed 0, 1 or 2, and evaluates it on 100 episodes of seeds
 disjoint from the data's. Every run's result is one JSON file under `--results`/pixels, so a killed benchmark
 goes on where it stopped (a run done is skipped, a half-trained one resumes from its checkpoint). After each
@@ -33,7 +34,7 @@ from benchmarks._machine import machine_line
 from fetch.rendering import DEFAULT_IMAGE_QUALITY
 
 DEMOS = (10, 100, 0)
-"""Demos trained on (the first of mask/train); 0: all of them (900 of the 1000 generated)."""
+"""Demos trained on (the first of mask/train); 0: all of them."""
 INPUTS = ("pixels", "state")
 SEEDS = (0, 1, 2)
 EPISODES = 100
@@ -101,9 +102,10 @@ def table(results: pathlib.Path) -> str:
     counts = {r["demos"]: r["train_demos"] for r in found}
     lines = [HEADING, "",
              "Written by `benchmarks/pixel_curves.py` (see its docstring). The demos: `benchmarks.mission --inputs "
-             "pixels`' stand-in, 10 pad demos, `gym-fetch generate` to 1000 with front and wrist images at 84 x 84 "
-             "drawn fast (900 in mask/train); each run is `gym-fetch train` with its defaults on the first N of "
-             "them (pixels: `--inputs pixels`, the `cnn-chunk` policy; state: the task's `auto` policy), then "
+             "pixels`' stand-in, 10 pad demos, `gym-fetch generate` from every start with front and wrist images at "
+             "84 x 84 drawn fast (mask/train's count: the last point); each run is `gym-fetch train` with its "
+             "defaults on the first N of them (pixels: `--inputs pixels`, the `cnn-chunk` policy; state: the "
+             "task's `auto` policy), then "
              f"{EPISODES} evaluation episodes on unseen seeds. Success %, mean ± std over the training seeds done "
              "(their count in brackets); the last column is the mean training wall time of a run on 2 cores.", "",
              "| task | sees | " + " | ".join(f"{counts.get(n, n or 'all')} demos" for n in DEMOS)
