@@ -201,7 +201,7 @@ class Generator:
 
     def plan(self, segment: Segment, frame: Frame, held: np.ndarray, loose: tuple[float, float] | None = None,
              body: int = -1) -> Plan:
-        """The segment carried over to `frame`, with the
+        """The segment carried over to `frame` (its targets, finger commands and openings: `Plan`), with the
         hand's offset from its start blended out (MimicGen interpolates first; we spread the offset
         over the segment's approach, and prepend steps only when that would be too fast). `loose`:
         the extent (radius, height [m]) of the loose object at the frame's origin that the segment
