@@ -204,7 +204,8 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
         summary.workers = backend.workers
         started = time.perf_counter()
         bar = _Bar(config.demos, have)
-        previous, made = last, None  # made: attempts since the previous demo (None: unknown, since a resume)
+        previous = last
+        made = 0 if last is None else None  # attempts since the previous demo (None: unknown, across a resume)
         try:
             for result in backend.results(first):
                 writer.reserve_attempt()
@@ -218,7 +219,8 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
                 if not summary.attempts:
                     summary.startup = time.perf_counter() - started
                 summary.attempts += 1
-                made = None if made is None and previous is not None else (made or 0) + 1
+                if made is not None:
+                    made += 1
                 if result.demo is not None:
                     _commit(writer, result, previous, made)
                     previous, made = result.number, 0
