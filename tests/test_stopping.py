@@ -204,3 +204,52 @@ def test_a_dropped_stop_is_not_sent_again_once_the_tool_has_left() -> None:
     finally:
         signal.signal(signal.SIGINT, previous)
     assert received == []
+
+
+def _sleep(seconds: float) -> float:
+    import time
+
+    time.sleep(seconds)
+    return seconds
+
+
+def test_a_stop_while_a_pool_is_being_stopped_waits_until_every_worker_is() -> None:
+    """`stop_pool` terminates and joins its workers with stops deferred (`stops_deferred`): a second Ctrl-C
+    raised inside that loop would leave the workers after it running on (and a spawned one still
+    starting then fails with a traceback once the tool has exited). The stop comes out once they are all
+    gone; its handler raises it then, as it would have."""
+    import concurrent.futures
+    import multiprocessing
+    import os
+    import time
+
+    from fetch._processes import stop_pool
+    from fetch.stopping import Stopped, stop_on_signals
+
+    pool = concurrent.futures.ProcessPoolExecutor(3, mp_context=multiprocessing.get_context("spawn"))
+    futures = [pool.submit(_sleep, 30.0) for _ in range(3)]
+    deadline = time.monotonic() + 60
+    while len(pool._processes or {}) < 3 or not all(f.running() for f in futures[:3]):
+        assert time.monotonic() < deadline, "the pool's workers did not start"
+        time.sleep(0.05)
+    workers = list(pool._processes.values())
+    terminate = type(workers[0]).terminate
+
+    def terminate_and_stop(self) -> None:  # noqa: ANN001
+        terminate(self)
+        if self is workers[0]:
+            os.kill(os.getpid(), signal.SIGINT)  # a Ctrl-C while the first worker is being stopped
+            time.sleep(0.05)  # the handler would raise here, with two workers still to stop
+
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        with stop_on_signals():
+            type(workers[0]).terminate = terminate_and_stop  # type: ignore[method-assign]
+            try:
+                with pytest.raises(Stopped):
+                    stop_pool(pool, abandon=True)
+            finally:
+                type(workers[0]).terminate = terminate  # type: ignore[method-assign]
+            assert [w.is_alive() for w in workers] == [False, False, False]
+    finally:
+        signal.signal(signal.SIGINT, before)

@@ -10,6 +10,8 @@ import threading
 import time
 from collections.abc import Iterator
 
+from fetch.stopping import stops_deferred
+
 
 def exit_with_parent(parent: int, period: float = 0.5) -> None:
     """End this worker once its parent is gone: a SIGKILLed parent runs no shutdown, and its workers
@@ -28,11 +30,13 @@ def exit_with_parent(parent: int, period: float = 0.5) -> None:
 def workers_deaf_to_ctrl_c() -> Iterator[None]:
     """Around whatever may start a pool's workers (a submit): SIGINT blocked in this thread, so that
     the workers start with it blocked (a signal mask survives fork and exec) until `start_worker`
-    ignores it; a Ctrl-C while a worker imports would otherwise end it with a traceback. This thread's
-    own Ctrl-C is only delayed: Python takes signals in the main thread, once unblocked."""
+    ignores it; a Ctrl-C while a worker imports would otherwise end it with a traceback. A stop is only
+    delayed (`stops_deferred`): raised between a worker's start and the pool recording it, it left that
+    worker out of the pool, running on after the tool had exited."""
     old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
-        yield
+        with stops_deferred():
+            yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
@@ -58,10 +62,13 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> No
     breaks (its workers terminated here, or one died) ends that thread with InvalidStateError, a traceback
     on stderr, before it terminates the other workers (a Ctrl-C in `render-obs`, in CI; CPython gh-107219,
     fixed upstream in 2023 but not in 3.11.7)."""
-    workers = list((getattr(pool, "_processes", None) or {}).values())  # private: CPython 3.8-3.13
-    results = getattr(pool, "_result_queue", None)  # private too; shutdown lets go of it
-    pool.shutdown(wait=not abandon, cancel_futures=True)
-    if abandon:
+    if not abandon:
+        pool.shutdown(wait=True, cancel_futures=True)
+        return
+    with stops_deferred():  # a stop raised in the middle would leave the rest running after the tool exits
+        workers = list((getattr(pool, "_processes", None) or {}).values())  # private: CPython 3.8-3.13
+        results = getattr(pool, "_result_queue", None)  # private too; shutdown lets go of it
+        pool.shutdown(wait=False, cancel_futures=True)
         for worker in workers:
             worker.terminate()
         for worker in workers:

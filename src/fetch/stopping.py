@@ -156,9 +156,9 @@ def stop_on_signals() -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def signals_held(message: str) -> Iterator[list[int]]:
-    """While inside, SIGINT and SIGTERM are noted (and `message` printed) instead of interrupting: the
-    saves that a first Ctrl-C asked to finish are not abandoned by a second one."""
+def signals_held(message: str | None) -> Iterator[list[int]]:
+    """While inside, SIGINT and SIGTERM are noted (and `message`, if any, printed) instead of interrupting:
+    the saves that a first Ctrl-C asked to finish are not abandoned by a second one."""
     received: list[int] = []
     if threading.current_thread() is not threading.main_thread():
         yield received
@@ -166,7 +166,8 @@ def signals_held(message: str) -> Iterator[list[int]]:
 
     def note(signum: int, frame: FrameType | None) -> None:
         received.append(signum)
-        os.write(2, f"{message}\n".encode())
+        if message is not None:
+            os.write(2, f"{message}\n".encode())
 
     old = {s: signal.signal(s, note) for s in STOP_SIGNALS}
     try:
@@ -174,3 +175,19 @@ def signals_held(message: str) -> Iterator[list[int]]:
     finally:
         for s, handler in old.items():
             signal.signal(s, handler)
+
+
+@contextlib.contextmanager
+def stops_deferred() -> Iterator[None]:
+    """While inside, a stop signal waits and is delivered again once out (to whatever handles it then), so
+    that a short piece of bookkeeping runs whole: a pool's workers all stopped, or a new worker recorded
+    as the pool's (Python runs a signal's handler in the main thread even where that thread blocks the
+    signal, as another thread takes it). Only in the main thread, where Python runs handlers."""
+    received: list[int] = []
+    try:
+        with signals_held(None) as held:
+            received = held
+            yield
+    finally:  # the handlers are back: each stop once, as if it came now
+        for signum in dict.fromkeys(received):
+            signal.raise_signal(signum)
