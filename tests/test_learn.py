@@ -146,6 +146,31 @@ def test_temporal_ensembling_averages_every_chunk_prediction_for_this_step(torch
         np.testing.assert_allclose(acted[t], np.clip(acted_actions(expected, *fingers), -1, 1), atol=1e-5)
 
 
+@pytest.mark.parametrize("decay", [0.01, -1.0])
+def test_a_chunked_policy_weighs_its_chunks_by_age_as_its_decay_says(torch, decay: float) -> None:  # noqa: ANN001
+    """A scripted model whose chunk made at step s predicts 100 s + j for step s + j: acted on at step 3, the
+    four chunks' guesses 3, 102, 201, 300 weigh exp(-decay * i), i = 0 for the oldest. A pixel policy's
+    default (`PIXEL_ENSEMBLE_DECAY`, below 0) weighs the newest most; ACT's 0.01 nearly alike."""
+    from fetch.learn.kinds import PIXEL_ENSEMBLE_DECAY, PolicyConfig, PolicySettings
+    from fetch.learn.policies import ChunkActor
+
+    assert PolicySettings.of("cnn-chunk", cameras=("front",)).ensemble_decay == PIXEL_ENSEMBLE_DECAY < 0
+    assert PolicySettings.of("mlp-chunk").ensemble_decay == 0.01
+    config = PolicyConfig(kind="mlp-chunk", chunk=4, ensemble_decay=decay, obs_size=1)
+
+    def model(x):  # noqa: ANN001, ANN202
+        step = float(x[0, 0])
+        return torch.arange(4, dtype=torch.float32).reshape(1, 4, 1).repeat(1, 1, 4) + 100 * step
+
+    actor = ChunkActor(config, model)
+    for step in range(4):
+        acted = actor(torch.full((1, 1), float(step)))
+    guesses = np.array([3.0, 102.0, 201.0, 300.0])  # made at steps 0, 1, 2, 3
+    weights = np.exp(-decay * np.arange(4))
+    np.testing.assert_allclose(acted[0], np.full(4, weights @ guesses / weights.sum()), rtol=1e-6)
+    assert (acted[0, 0] > 200) == (decay < 0)  # the newest chunks carry it, or all alike
+
+
 @pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])
 def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reach: pathlib.Path, tmp_path,
                                                                      kind: str) -> None:  # noqa: ANN001
