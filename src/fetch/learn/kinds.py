@@ -150,7 +150,7 @@ class PolicySettings:
             raise FetchError(f"finger_span must be above 0 and at most 1, got {self.finger_span!r}")
         decay = self.ensemble_decay
         if isinstance(decay, bool) or not isinstance(decay, int | float) or not math.isfinite(decay):
-            raise FetchError(f"ensemble_decay must be a number, got {self.ensemble_decay!r}")
+            raise FetchError(f"ensemble_decay must be a number, got {decay!r}")
 
     @classmethod
     def of(cls, kind_name: str, **settings: Any) -> PolicySettings:
