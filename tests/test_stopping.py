@@ -105,10 +105,17 @@ def test_seeds_out_of_range_are_refused_before_anything_is_written(tmp_path: pat
     assert not out.exists()
 
 
-@pytest.mark.parametrize("then", [BrokenPipeError, lambda: DatasetError("a render worker died")])
+# CPython turns a stop raised inside a C extension's call (h5py's attribute iteration, in a CI run of
+# export-lerobot) into this SystemError, with the stop as its context.
+EXTENSION_ERROR = "<cyfunction FastRLock.__exit__ at 0x7fd2020be140> returned a result with an exception set"
+
+
+@pytest.mark.parametrize("then", [BrokenPipeError, lambda: DatasetError("a render worker died"),
+                                  lambda: SystemError(EXTENSION_ERROR)], ids=["pipe", "fetch-error", "extension"])
 def test_an_error_while_winding_down_after_a_stop_still_exits_as_the_stop(then, capsys) -> None:  # noqa: ANN001
     """A Ctrl-C during an export's rendering can break a pipe to a worker (or kill one) while the
-    work is wound down; the exit status is the stop's, 130, not a pipe's 1 or an error's 2."""
+    work is wound down, or land inside a C extension that reports it as its own SystemError; the exit
+    status is the stop's, 130, not a pipe's 1, an error's 2 or a traceback."""
     import argparse
 
     from fetch.cli import _run
@@ -122,6 +129,18 @@ def test_an_error_while_winding_down_after_a_stop_still_exits_as_the_stop(then, 
     assert _run(argparse.Namespace(run=run, command="export")) == 130
     err = capsys.readouterr().err
     assert err == "" or err.startswith("gym-fetch export: error: a render worker died")
+
+
+def test_an_extension_error_with_no_stop_behind_it_is_not_taken_for_one() -> None:
+    import argparse
+
+    from fetch.cli import _run
+
+    def run(_: argparse.Namespace) -> int:
+        raise SystemError(EXTENSION_ERROR)
+
+    with pytest.raises(SystemError, match="FastRLock"):
+        _run(argparse.Namespace(run=run, command="export"))
 
 
 SWALLOWED_STOP = """
