@@ -274,3 +274,32 @@ def test_a_stop_while_a_pool_is_being_stopped_waits_until_every_worker_is() -> N
             assert [alive(w.pid) for w in workers] == [False, False, False]
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+
+def test_a_worker_reaped_by_another_thread_counts_as_ended() -> None:
+    """`stop_pool` closes its result pipe's writing end only once every worker has ended (`all_ended`).
+    When two threads wait for one worker (the pool's own thread and `stop_pool`), the one whose `waitpid`
+    loses gets ECHILD, and `is_alive` says True until the other records the exit code; the sentinel says
+    it ended. Here the worker is reaped behind its Process object's back, so `is_alive` stays wrong."""
+    import multiprocessing
+    import os
+
+    from fetch._processes import all_ended
+
+    context = multiprocessing.get_context("spawn")
+    workers = [context.Process(target=_sleep, args=(30.0,)) for _ in range(2)]
+    for worker in workers:
+        worker.start()
+    try:
+        os.kill(workers[0].pid, signal.SIGKILL)
+        os.waitpid(workers[0].pid, 0)
+        assert workers[0].is_alive()  # what the guard used to read
+        assert all_ended(workers[:1])
+        assert not all_ended(workers)  # the other one still runs
+        workers[1].terminate()
+        workers[1].join(timeout=30)
+        assert all_ended(workers)
+    finally:
+        for worker in workers[1:]:
+            worker.kill()

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import multiprocessing.connection
+import multiprocessing.process
 import os
 import signal
 import threading
@@ -73,12 +75,25 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> No
             worker.terminate()
         for worker in workers:
             worker.join(timeout=5)
-        if results is not None and not any(worker.is_alive() for worker in workers):
+        if results is not None and all_ended(workers):
             # A worker terminated while it wrote a result leaves half a message in the pipe, and the
             # pool's thread waits for the rest for good (the interpreter's exit with it: `generate`
             # hung once after its last demo). This end closed too, with every worker gone, it reads
             # the end of the pipe instead.
             results._writer.close()
+
+
+def all_ended(workers: list[multiprocessing.process.BaseProcess]) -> bool:
+    """Whether every one of `workers` has ended, read from their sentinels. Not `is_alive`: a worker
+    that the pool's own thread reaped first looks alive to it for good (its `waitpid` fails with ECHILD,
+    and the exit code stays unknown)."""
+    sentinels = []
+    for worker in workers:
+        try:
+            sentinels.append(worker.sentinel)
+        except ValueError:  # closed: joined and released, so ended
+            continue
+    return len(multiprocessing.connection.wait(sentinels, timeout=0)) == len(sentinels)
 
 
 def usable_cores() -> int:
