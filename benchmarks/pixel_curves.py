@@ -85,7 +85,22 @@ def run(job: Job, dataset: pathlib.Path, results: pathlib.Path) -> dict[str, Any
     outcome = evaluate(load(trained.run), EPISODES)
     return {**dataclasses.asdict(job), "policy": trained.plan.policy.kind, "steps": trained.plan.config.steps,
             "train_demos": _train_demos(trained.run), "train_seconds": train_s,
-            "eval_seconds": time.perf_counter() - start, **outcome.as_dict()}
+            "eval_seconds": time.perf_counter() - start, "precision": trained.plan.config.precision,
+            "date": time.strftime("%Y-%m-%d"), "machine": machine_line("torch"), **outcome.as_dict()}
+
+
+def where_run(found: list[dict[str, Any]]) -> str:
+    """The dates, CPUs, precisions and commits the results were measured on, one clause each (the
+    times in the table are only comparable within one)."""
+    places: dict[tuple[str, str, str, str], int] = {}
+    for r in found:
+        line = r.get("machine", "")
+        cpu = line.split("CPU ", 1)[1].split(",", 1)[0] if "CPU " in line else "unrecorded CPU"
+        commit = line.split("(git ", 1)[1].split(")", 1)[0] if "(git " in line else "unrecorded"
+        key = (r.get("date", "undated"), cpu, r.get("precision", "unrecorded precision"), commit)
+        places[key] = places.get(key, 0) + 1
+    return "; ".join(f"{date}, {cpu}, {precision}, git {commit} ({n} run{'s' * (n > 1)})"
+                     for (date, cpu, precision, commit), n in sorted(places.items()))
 
 
 def _train_demos(run_dir: pathlib.Path) -> int:
@@ -122,6 +137,7 @@ def table(results: pathlib.Path) -> str:
                 cells.append(f"{np.mean(rates):.0f}{spread} ({len(rates)})" if rates else "")
             seconds = np.mean([r["train_seconds"] for r in rows])
             lines.append(f"| `{task}` | {inputs} ({rows[0]['policy']}) | " + " | ".join(cells) + f" | {seconds:.0f} |")
+    lines += ["", f"Measured on 2 cores: {where_run(found)}."]
     return "\n".join(lines) + "\n"
 
 
