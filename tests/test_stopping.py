@@ -118,7 +118,7 @@ def test_an_error_while_winding_down_after_a_stop_still_exits_as_the_stop(then, 
     status is the stop's, 130, not a pipe's 1, an error's 2 or a traceback."""
     import argparse
 
-    from fetch.cli import _run
+    from fetch.cli import run_stoppable
 
     def run(_: argparse.Namespace) -> int:
         try:
@@ -126,7 +126,7 @@ def test_an_error_while_winding_down_after_a_stop_still_exits_as_the_stop(then, 
         finally:
             raise then()
 
-    assert _run(argparse.Namespace(run=run, command="export")) == 130
+    assert run_stoppable(lambda: argparse.Namespace(run=run, command="export")) == 130
     err = capsys.readouterr().err
     assert err == "" or err.startswith("gym-fetch export: error: a render worker died")
 
@@ -134,13 +134,13 @@ def test_an_error_while_winding_down_after_a_stop_still_exits_as_the_stop(then, 
 def test_an_extension_error_with_no_stop_behind_it_is_not_taken_for_one() -> None:
     import argparse
 
-    from fetch.cli import _run
+    from fetch.cli import run_stoppable
 
     def run(_: argparse.Namespace) -> int:
         raise SystemError(EXTENSION_ERROR)
 
     with pytest.raises(SystemError, match="FastRLock"):
-        _run(argparse.Namespace(run=run, command="export"))
+        run_stoppable(lambda: argparse.Namespace(run=run, command="export"))
 
 
 SWALLOWED_STOP = """

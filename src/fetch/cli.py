@@ -64,7 +64,9 @@ def run_stoppable(parse: Callable[[], argparse.Namespace], prog: str | None = No
             return _run(parse(), prog)
     except KeyboardInterrupt as e:  # while parsing, or landed while the handlers were put back
         return _stopped(e)
-    except Exception as e:  # an import's error that a stop while loading caused is still the stop
+    except Exception as e:
+        # A stop raised inside a C extension's call (h5py's attribute iteration, an import) comes out as
+        # the extension's error, SystemError say, with the stop as its context: that is still the stop.
         stop = _stop_behind(e)
         if stop is None:
             raise
@@ -104,13 +106,6 @@ def _run(args: argparse.Namespace, prog: str | None = None) -> int:
             return 1
         print(f"{name}: error: {e}", file=sys.stderr)
         return 2
-    except Exception as e:
-        # A stop raised inside a C extension's callback (h5py's attribute iteration, say) comes out as
-        # the extension's SystemError, with the stop as its context: that is still the stop.
-        stop = _stop_behind(e)
-        if stop is None:
-            raise
-        return _stopped(stop)
 
 
 def _stop_behind(e: BaseException) -> KeyboardInterrupt | None:
