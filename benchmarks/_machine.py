@@ -43,8 +43,9 @@ def _git(where: pathlib.Path, *args: str) -> str:
                           timeout=10).stdout.strip()
 
 
-def fetch_version() -> str:
-    """fetch's version and where it was imported from, with the git commit when that is a checkout."""
+def fetch_commit() -> str:
+    """The git commit of the fetch this process imported ("" where it is not a checkout), with ", with
+    uncommitted changes" where its files differ from it."""
     import fetch
 
     where = pathlib.Path(fetch.__file__).resolve().parent
@@ -52,8 +53,17 @@ def fetch_version() -> str:
         commit = _git(where, "rev-parse", "--short", "HEAD")
         dirty = _git(where, "status", "--porcelain", "--", ".")
     except (OSError, subprocess.SubprocessError):
-        return f"{fetch.__version__} from {where}"
-    return f"{fetch.__version__} from {where} (git {commit}{', with uncommitted changes' if dirty else ''})"
+        return ""
+    return commit + (", with uncommitted changes" if dirty else "")
+
+
+def fetch_version() -> str:
+    """fetch's version and where it was imported from, with the git commit when that is a checkout."""
+    import fetch
+
+    where = pathlib.Path(fetch.__file__).resolve().parent
+    commit = fetch_commit()
+    return f"{fetch.__version__} from {where}" + (f" (git {commit})" if commit else "")
 
 
 def machine(*extra: str) -> list[tuple[str, str]]:

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks._machine import machine_line
+from benchmarks._machine import cpu_model, fetch_commit, machine_line
 from fetch.rendering import DEFAULT_IMAGE_QUALITY
 
 DEMOS = (10, 100, 0)
@@ -86,7 +86,8 @@ def run(job: Job, dataset: pathlib.Path, results: pathlib.Path) -> dict[str, Any
     return {**dataclasses.asdict(job), "policy": trained.plan.policy.kind, "steps": trained.plan.config.steps,
             "train_demos": _train_demos(trained.run), "train_seconds": train_s,
             "eval_seconds": time.perf_counter() - start, "precision": trained.plan.config.precision,
-            "date": time.strftime("%Y-%m-%d"), "machine": machine_line("torch"), **outcome.as_dict()}
+            "date": time.strftime("%Y-%m-%d"), "cpu": cpu_model(), "commit": fetch_commit() or "unrecorded",
+            "machine": machine_line("torch"), **outcome.as_dict()}
 
 
 def where_run(found: list[dict[str, Any]]) -> str:
@@ -94,10 +95,8 @@ def where_run(found: list[dict[str, Any]]) -> str:
     times in the table are only comparable within one)."""
     places: dict[tuple[str, str, str, str], int] = {}
     for r in found:
-        line = r.get("machine", "")
-        cpu = line.split("CPU ", 1)[1].split(",", 1)[0] if "CPU " in line else "unrecorded CPU"
-        commit = line.split("(git ", 1)[1].split(")", 1)[0] if "(git " in line else "unrecorded"
-        key = (r.get("date", "undated"), cpu, r.get("precision", "unrecorded precision"), commit)
+        key = (r.get("date", "undated"), r.get("cpu", "unrecorded CPU"), r.get("precision", "unrecorded precision"),
+               r.get("commit", "unrecorded"))
         places[key] = places.get(key, 0) + 1
     return "; ".join(f"{date}, {cpu}, {precision}, git {commit} ({n} run{'s' * (n > 1)})"
                      for (date, cpu, precision, commit), n in sorted(places.items()))
