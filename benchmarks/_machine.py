@@ -43,15 +43,19 @@ def _git(where: pathlib.Path, *args: str) -> str:
                           timeout=10).stdout.strip()
 
 
+def _fetch_dir() -> pathlib.Path:
+    """Where the fetch this process imports lives."""
+    import fetch
+
+    return pathlib.Path(fetch.__file__).resolve().parent
+
+
 def fetch_commit() -> str:
     """The git commit of the fetch this process imported ("" where it is not a checkout), with ", with
     uncommitted changes" where its files differ from it."""
-    import fetch
-
-    where = pathlib.Path(fetch.__file__).resolve().parent
     try:
-        commit = _git(where, "rev-parse", "--short", "HEAD")
-        dirty = _git(where, "status", "--porcelain", "--", ".")
+        commit = _git(_fetch_dir(), "rev-parse", "--short", "HEAD")
+        dirty = _git(_fetch_dir(), "status", "--porcelain", "--", ".")
     except (OSError, subprocess.SubprocessError):
         return ""
     return commit + (", with uncommitted changes" if dirty else "")
@@ -61,9 +65,8 @@ def fetch_version() -> str:
     """fetch's version and where it was imported from, with the git commit when that is a checkout."""
     import fetch
 
-    where = pathlib.Path(fetch.__file__).resolve().parent
     commit = fetch_commit()
-    return f"{fetch.__version__} from {where}" + (f" (git {commit})" if commit else "")
+    return f"{fetch.__version__} from {_fetch_dir()}" + (f" (git {commit})" if commit else "")
 
 
 def machine(*extra: str) -> list[tuple[str, str]]:

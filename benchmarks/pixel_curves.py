@@ -116,12 +116,11 @@ def table(results: pathlib.Path) -> str:
     lines = [HEADING, "",
              "Written by `benchmarks/pixel_curves.py` (see its docstring). The demos: `benchmarks.mission --inputs "
              "pixels`' stand-in, 10 pad demos, `gym-fetch generate` from every start with front and wrist images at "
-             "84 x 84 drawn fast; each run is `gym-fetch train` with its "
-             "defaults on the first N of them, or all of mask/train (their count after \"of\"; pixels: `--inputs "
-             "pixels`, the `cnn-chunk` policy; state: the "
-             "task's `auto` policy), then "
-             f"{EPISODES} evaluation episodes on unseen seeds. Success %, mean ± std over the training seeds done "
-             "(their count in brackets); the last column is the mean training wall time of a run on 2 cores.", "",
+             "84 x 84 drawn fast; each run is `gym-fetch train` with its defaults on the first N of them, or all of "
+             "mask/train (their count after \"of\"; pixels: `--inputs pixels`, the `cnn-chunk` policy; state: the "
+             f"task's `auto` policy), then {EPISODES} evaluation episodes on unseen seeds. Success %, mean ± std "
+             "over the training seeds done (their count in brackets); the last column is the mean training wall "
+             "time of a run on 2 cores.", "",
              "| task | sees | " + " | ".join(f"{n or 'all'} demos" for n in DEMOS)
              + " | train [s] per run |", "|---|---|" + "---|" * (len(DEMOS) + 1)]
     for task in sorted({r["task"] for r in found}):
