@@ -53,9 +53,10 @@ def _fetch_dir() -> pathlib.Path:
 def fetch_commit() -> str:
     """The git commit of the fetch this process imported ("" where it is not a checkout), with ", with
     uncommitted changes" where its files differ from it."""
+    where = _fetch_dir()
     try:
-        commit = _git(_fetch_dir(), "rev-parse", "--short", "HEAD")
-        dirty = _git(_fetch_dir(), "status", "--porcelain", "--", ".")
+        commit = _git(where, "rev-parse", "--short", "HEAD")
+        dirty = _git(where, "status", "--porcelain", "--", ".")
     except (OSError, subprocess.SubprocessError):
         return ""
     return commit + (", with uncommitted changes" if dirty else "")
