@@ -90,6 +90,17 @@ def run(job: Job, dataset: pathlib.Path, results: pathlib.Path) -> dict[str, Any
             "machine": machine_line("torch"), **outcome.as_dict()}
 
 
+def _cell(rates: list[float], demos: int, done: list[dict[str, Any]]) -> str:
+    """"mean ± std (each seed's)": the seeds' own rates beside the mean, since whole-percent rounding of a
+    spread over two or three seeds hides it (100 and 99 read "100 ± 0"); "" where none has run."""
+    if not rates:
+        return ""
+    of = "" if demos else " of " + "/".join(sorted({str(r["train_demos"]) for r in done}))
+    if len(rates) == 1:
+        return f"{rates[0]:.0f} (seed {done[0]['seed']} only){of}"
+    return f"{np.mean(rates):.0f} ± {np.std(rates):.0f} ({', '.join(f'{x:.0f}' for x in rates)}){of}"
+
+
 def where_run(found: list[dict[str, Any]]) -> str:
     """The dates, CPUs, precisions and commits the results were measured on, one clause each (the
     times in the table are only comparable within one)."""
@@ -119,8 +130,8 @@ def table(results: pathlib.Path) -> str:
              "84 x 84 drawn fast; each run is `gym-fetch train` with its defaults on the first N of them, or all of "
              "mask/train (their count after \"of\"; pixels: `--inputs pixels`, the `cnn-chunk` policy; state: the "
              f"task's `auto` policy), then {EPISODES} evaluation episodes on unseen seeds. Success %, mean ± std "
-             "over the training seeds done (their count in brackets); the last column is the mean training wall "
-             "time of a run on 2 cores.", "",
+             "over the training seeds done (in brackets each seed's own, in seed order); the last column is the "
+             "mean training wall time of a run on 2 cores.", "",
              "| task | sees | " + " | ".join(f"{n or 'all'} demos" for n in DEMOS)
              + " | train [s] per run |", "|---|---|" + "---|" * (len(DEMOS) + 1)]
     for task in sorted({r["task"] for r in found}):
@@ -130,11 +141,8 @@ def table(results: pathlib.Path) -> str:
                 continue
             cells = []
             for n in DEMOS:
-                done = [r for r in rows if r["demos"] == n]
-                rates = [100 * r["success_rate"] for r in done]
-                spread = f" ± {np.std(rates):.0f}" if len(rates) > 1 else ""
-                of = "" if n else " of " + "/".join(sorted({str(r["train_demos"]) for r in done}))
-                cells.append(f"{np.mean(rates):.0f}{spread} ({len(rates)}){of}" if rates else "")
+                done = sorted((r for r in rows if r["demos"] == n), key=lambda r: r["seed"])
+                cells.append(_cell([100 * r["success_rate"] for r in done], n, done))
             seconds = np.mean([r["train_seconds"] for r in rows])
             lines.append(f"| `{task}` | {inputs} ({rows[0]['policy']}) | " + " | ".join(cells) + f" | {seconds:.0f} |")
     lines += ["", f"Measured on 2 cores: {where_run(found)}."]
