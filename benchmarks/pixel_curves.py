@@ -90,11 +90,13 @@ def run(job: Job, dataset: pathlib.Path, results: pathlib.Path) -> dict[str, Any
             "machine": machine_line("torch"), **outcome.as_dict()}
 
 
-def _cell(rates: list[float], demos: int, done: list[dict[str, Any]]) -> str:
-    """"mean ± std (each seed's)": the seeds' own rates beside the mean, since whole-percent rounding of a
-    spread over two or three seeds hides it (100 and 99 read "100 ± 0"); "" where none has run."""
-    if not rates:
+def _cell(done: list[dict[str, Any]], demos: int) -> str:
+    """"mean ± std (each seed's)" of the results `done` (in seed order): the seeds' own rates beside the mean,
+    since whole-percent rounding of a spread over two or three seeds hides it (100 and 99 read "100 ± 0"); ""
+    where none has run."""
+    if not done:
         return ""
+    rates = [100 * r["success_rate"] for r in done]
     of = "" if demos else " of " + "/".join(sorted({str(r["train_demos"]) for r in done}))
     if len(rates) == 1:
         return f"{rates[0]:.0f} (seed {done[0]['seed']} only){of}"
@@ -142,7 +144,7 @@ def table(results: pathlib.Path) -> str:
             cells = []
             for n in DEMOS:
                 done = sorted((r for r in rows if r["demos"] == n), key=lambda r: r["seed"])
-                cells.append(_cell([100 * r["success_rate"] for r in done], n, done))
+                cells.append(_cell(done, n))
             seconds = np.mean([r["train_seconds"] for r in rows])
             lines.append(f"| `{task}` | {inputs} ({rows[0]['policy']}) | " + " | ".join(cells) + f" | {seconds:.0f} |")
     lines += ["", f"Measured on 2 cores: {where_run(found)}."]
