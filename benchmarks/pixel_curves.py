@@ -86,16 +86,17 @@ def run(job: Job, dataset: pathlib.Path, results: pathlib.Path) -> dict[str, Any
     return {**dataclasses.asdict(job), "policy": trained.plan.policy.kind, "steps": trained.plan.config.steps,
             "train_demos": _train_demos(trained.run), "train_seconds": train_s,
             "eval_seconds": time.perf_counter() - start, "precision": trained.plan.config.precision,
-            "date": time.strftime("%Y-%m-%d"), "cpu": cpu_model(), "commit": fetch_commit() or "unrecorded",
+            "date": time.strftime("%Y-%m-%d"), "finished": time.time(), "cpu": cpu_model(),
+            "commit": fetch_commit() or "unrecorded",
             "machine": machine_line("torch"), **outcome.as_dict()}
 
 
 def _cell(done: list[dict[str, Any]], demos: int) -> str:
     """"mean ± std (each seed's)" of the results `done` (in seed order): the seeds' own rates beside the mean,
-    since whole-percent rounding of a spread over two or three seeds hides it (100 and 99 read "100 ± 0"); ""
-    where none has run."""
+    since whole-percent rounding of a spread over two or three seeds hides it (100 and 99 read "100 ± 0");
+    "not run yet" where none has run."""
     if not done:
-        return ""
+        return "not run yet"
     rates = [100 * r["success_rate"] for r in done]
     of = "" if demos else " of " + "/".join(sorted({str(r["train_demos"]) for r in done}))
     if len(rates) == 1:
@@ -104,15 +105,17 @@ def _cell(done: list[dict[str, Any]], demos: int) -> str:
 
 
 def where_run(found: list[dict[str, Any]]) -> str:
-    """The dates, CPUs, precisions and commits the results were measured on, one clause each (the
-    times in the table are only comparable within one)."""
-    places: dict[tuple[str, str, str, str], int] = {}
-    for r in found:
-        key = (r.get("date", "undated"), r.get("cpu", "unrecorded CPU"), r.get("precision", "unrecorded precision"),
-               r.get("commit", "unrecorded"))
-        places[key] = places.get(key, 0) + 1
-    return "; ".join(f"{date}, {cpu}, {precision}, git {commit} ({n} run{'s' * (n > 1)})"
-                     for (date, cpu, precision, commit), n in sorted(places.items()))
+    """The dates, CPUs and precisions the results were measured on, one clause each with the commits measured
+    there in the order their first run finished (the times in the table are only comparable within one clause)."""
+    places: dict[tuple[str, str, str], dict[str, int]] = {}
+    for r in sorted(found, key=lambda r: r.get("finished", 0.0)):
+        key = (r.get("date", "undated"), r.get("cpu", "unrecorded CPU"), r.get("precision", "unrecorded precision"))
+        commits = places.setdefault(key, {})
+        commit = r.get("commit", "unrecorded")
+        commits[commit] = commits.get(commit, 0) + 1
+    return "; ".join(f"{date}, {cpu}, {precision}: "
+                     + ", ".join(f"git {commit} ({n} run{'s' * (n > 1)})" for commit, n in commits.items())
+                     for (date, cpu, precision), commits in sorted(places.items()))
 
 
 def _train_demos(run_dir: pathlib.Path) -> int:
@@ -123,7 +126,8 @@ def _train_demos(run_dir: pathlib.Path) -> int:
 
 def table(results: pathlib.Path) -> str:
     """This benchmark's section of docs/learning_curves.md from the results so far ("" without any)."""
-    found = [json.loads(p.read_text()) for p in sorted((results / "pixels").glob("*.json"))]
+    found = [{"finished": p.stat().st_mtime, **json.loads(p.read_text())}
+             for p in sorted((results / "pixels").glob("*.json"))]
     if not found:
         return ""
     lines = [HEADING, "",
