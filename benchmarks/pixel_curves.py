@@ -22,6 +22,7 @@ steps (2-5 minutes): about 1 hour a task for each training seed's 6 runs.
 from __future__ import annotations
 
 import argparse
+import collections
 import dataclasses
 import json
 import pathlib
@@ -107,12 +108,10 @@ def _cell(done: list[dict[str, Any]], demos: int) -> str:
 def where_run(found: list[dict[str, Any]]) -> str:
     """The dates, CPUs and precisions the results were measured on, one clause each with the commits measured
     there in the order their first run finished (the times in the table are only comparable within one clause)."""
-    places: dict[tuple[str, str, str], dict[str, int]] = {}
+    places: dict[tuple[str, str, str], collections.Counter[str]] = collections.defaultdict(collections.Counter)
     for r in sorted(found, key=lambda r: r.get("finished", 0.0)):
         key = (r.get("date", "undated"), r.get("cpu", "unrecorded CPU"), r.get("precision", "unrecorded precision"))
-        commits = places.setdefault(key, {})
-        commit = r.get("commit", "unrecorded")
-        commits[commit] = commits.get(commit, 0) + 1
+        places[key][r.get("commit", "unrecorded")] += 1
     return "; ".join(f"{date}, {cpu}, {precision}: "
                      + ", ".join(f"git {commit} ({n} run{'s' * (n > 1)})" for commit, n in commits.items())
                      for (date, cpu, precision), commits in sorted(places.items()))
