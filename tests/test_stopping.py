@@ -277,6 +277,45 @@ def test_a_stop_while_a_pool_is_being_stopped_waits_until_every_worker_is() -> N
 
 
 
+def test_a_stop_while_waiting_for_a_pools_workers_to_finish_ends_them() -> None:
+    """`stop_pool` without `abandon` waits for the workers to finish what they run; a second Ctrl-C during
+    that wait left them running after the tool had exited, and one still starting then read the pool's
+    semaphores that the exit had removed, and died with a traceback (CI, `export --to lerobot`). The stop
+    comes out with the workers, and the pool's own thread, ended."""
+    import concurrent.futures
+    import multiprocessing
+    import os
+    import threading
+    import time
+
+    from fetch._processes import stop_pool
+    from fetch.stopping import Stopped, stop_on_signals
+    from procs import alive
+
+    pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+    future = pool.submit(_sleep, 30.0)
+    deadline = time.monotonic() + 60
+    while not future.running():
+        assert time.monotonic() < deadline, "the pool's worker did not start"
+        time.sleep(0.05)
+    workers, manager = list(pool._processes.values()), pool._executor_manager_thread
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        with stop_on_signals():
+            timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))  # a Ctrl-C while it waits
+            timer.start()
+            start = time.monotonic()
+            with pytest.raises(Stopped):
+                stop_pool(pool, abandon=False)
+            assert time.monotonic() - start < 15  # not the job's 30 s
+            assert [alive(w.pid) for w in workers] == [False]
+            assert manager is not None and not manager.is_alive()
+    finally:
+        signal.signal(signal.SIGINT, before)
+        for worker in workers:
+            worker.kill()
+
+
 def test_a_worker_reaped_by_another_thread_counts_as_ended() -> None:
     """`stop_pool` closes its result pipe's writing end only once every worker has ended (`all_ended`).
     When two threads wait for one worker (the pool's own thread and `stop_pool`), the one whose `waitpid`

@@ -58,6 +58,9 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> No
     terminate its workers rather than wait for them. A worker that finishes a job while the pool
     shuts down writes its result to a pipe that nothing reads any more, and waits there for good, and
     so does the interpreter's exit, which joins it (a double Ctrl-C hung `render-obs` and `generate`).
+    A second stop while waiting for the workers to finish ends them as abandoned: left starting, one
+    read the pool's semaphores after the exit had removed them, and died with a traceback (CI, a
+    double Ctrl-C in `export --to lerobot`).
 
     Cancel a pool's futures only this way (`cancel_futures`: the pool's own thread cancels them). On
     CPython 3.11, a future cancelled from outside that the pool's thread has not yet seen when the pool
@@ -65,11 +68,23 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> No
     on stderr, before it terminates the other workers (a Ctrl-C in `render-obs`, in CI; CPython gh-107219,
     fixed upstream in 2023 but not in 3.11.7)."""
     if not abandon:
-        pool.shutdown(wait=True, cancel_futures=True)
-        return
+        try:
+            pool.shutdown(wait=True, cancel_futures=True)
+            return
+        except BaseException:
+            _end_workers(pool)
+            raise
+    _end_workers(pool)
+
+
+def _end_workers(pool: concurrent.futures.ProcessPoolExecutor) -> None:
+    """Terminate a pool's workers, and wait for them and for the pool's own thread. That thread closes
+    its wake-up pipe as it ends, and the interpreter's exit writes to that pipe unless the thread has
+    ended: the two at once failed on the closed pipe ("Exception ignored ... Bad file descriptor")."""
     with stops_deferred():  # a stop raised in the middle would leave the rest running after the tool exits
         workers = list((getattr(pool, "_processes", None) or {}).values())  # private: CPython 3.8-3.13
         results = getattr(pool, "_result_queue", None)  # private too; shutdown lets go of it
+        manager = getattr(pool, "_executor_manager_thread", None)  # private too
         pool.shutdown(wait=False, cancel_futures=True)
         for worker in workers:
             worker.terminate()
@@ -81,6 +96,8 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor, abandon: bool) -> No
             # hung once after its last demo). This end closed too, with every worker gone, it reads
             # the end of the pipe instead.
             results._writer.close()
+        if manager is not None and manager is not threading.current_thread():
+            manager.join(timeout=5)
 
 
 def all_ended(workers: list[multiprocessing.process.BaseProcess]) -> bool:

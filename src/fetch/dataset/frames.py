@@ -175,9 +175,9 @@ class RenderPool:
         episode's reset seed, which its looks are drawn from where the env draws them."""
         path = self._dir / f"{next(self._jobs)}.npy"
         np.save(path, states)
-        with workers_deaf_to_ctrl_c():
+        with workers_deaf_to_ctrl_c():  # recorded inside: a stop that waited for the submit finds it in flight
             future = self._pool.submit(_render_in_process, str(path), tuple(cameras), seed)
-        self._futures.add(future)
+            self._futures.add(future)
         future.add_done_callback(self._futures.discard)
         return future
 
