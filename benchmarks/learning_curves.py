@@ -381,10 +381,7 @@ def _publish(results: pathlib.Path, docs: pathlib.Path, steps: int) -> None:
     choices = choices_table(results)
     if choices:
         text += "\n" + choices
-    # benchmarks.pixel_curves' section: from its results here, else as the page has it.
-    page = docs / "learning_curves.md"
-    pixels = pixel_curves.table(results) or pixel_curves.section(page.read_text() if page.exists() else "",
-                                                                 pixel_curves.HEADING)
+    pixels = pixel_curves.table(pixel_curves.load(pixel_curves.RECORDS))  # benchmarks.pixel_curves' section
     if pixels:
         text = pixel_curves.with_section(text, pixel_curves.HEADING, pixels)
     tmp = docs / ".learning_curves.md.tmp"

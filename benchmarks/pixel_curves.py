@@ -1,7 +1,7 @@
 """Learning curves from the cameras against from the state: success after N of the mission's demos.
 
     .venv-train/bin/python -m benchmarks.pixel_curves --mission /tmp/mission [--tasks PickPlace-v2]
-        [--results /tmp/gym-fetch-learning-curves] [--seeds 0,1,2] [--limit K]
+        [--results /tmp/gym-fetch-learning-curves] [--records FILE] [--seeds 0,1,2] [--limit K]
 
 The demos are those `benchmarks.mission --env TASK --inputs pixels --dir /tmp/mission` generated for a task
 (the stand-in's 10 pad demos multiplied by `gym-fetch generate --cameras front,wrist --image-size 84`, drawn
@@ -9,10 +9,11 @@ The demos are those `benchmarks.mission --env TASK --inputs pixels --dir /tmp/mi
 starts, a dataset of its own that this does not use): run that first. Each run trains, with `gym-fetch train`'s
 defaults, on the first N demos of mask/train (`DEMOS`: 10, 100 and all) either the pixel policy (`--inputs pixels`)
 or the state policy (`--policy auto`), with training seed 0, 1 or 2, and evaluates it on 100 episodes of seeds
-disjoint from the data's. Every run's result is one JSON file under `--results`/pixels, so a killed benchmark
-goes on where it stopped (a run done is skipped, a half-trained one resumes from its checkpoint). After each
-run it rewrites its section of docs/learning_curves.md (`HEADING`; the rest of the page is
-`benchmarks.learning_curves`', which keeps this section when it rewrites the page).
+disjoint from the data's. Every run's result is one line of `RECORDS`, in the repository (the curves go on from
+any machine: a run recorded there is skipped), and its trained policy is under `--results`/runs (a half-trained
+run resumes from its checkpoint after an interruption). After each run it rewrites its section of
+docs/learning_curves.md from the records (`HEADING`; the rest of the page is `benchmarks.learning_curves`',
+which writes this section from the records too).
 
 A run is one `gym-fetch train` with that many demos: the pixel policy takes its 6000 steps whatever the
 number of demos (on 2 cores about 9 minutes with bf16, 12 in fp32 with AVX512), the state policy the task's
@@ -41,6 +42,11 @@ SEEDS = (0, 1, 2)
 EPISODES = 100
 HEADING = "## From the cameras against from the state (the mission's generated demos)"
 """The section of docs/learning_curves.md this benchmark writes."""
+RECORDS = pathlib.Path(__file__).resolve().parent / "results" / "pixel_curves.jsonl"
+"""Every run's result, one JSON object a line, oldest first. Kept in the repository: kept in /tmp before, the results
+were lost with each machine, and the table could be written again only from what one machine still had. The 71
+runs of 2026-11-29 were rebuilt from the table then published (`reconstructed` says so): their success exactly,
+their commit from the docs' history, and as training time their row's mean (each run's own was not published)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,6 +59,10 @@ class Job:
     @property
     def name(self) -> str:
         return f"{self.task}__{self.inputs}__n{self.demos or 'all'}__s{self.seed}"
+
+    @classmethod
+    def of(cls, record: dict[str, Any]) -> Job:
+        return cls(record["task"], record["inputs"], record["demos"], record["seed"])
 
 
 def jobs(tasks: list[str], seeds: tuple[int, ...]) -> list[Job]:
@@ -123,10 +133,24 @@ def _train_demos(run_dir: pathlib.Path) -> int:
     return len(checkpoint.read(run_dir)["source"]["train_demos"])
 
 
-def table(results: pathlib.Path) -> str:
-    """This benchmark's section of docs/learning_curves.md from the results so far ("" without any)."""
-    found = [{"finished": p.stat().st_mtime, **json.loads(p.read_text())}
-             for p in sorted((results / "pixels").glob("*.json"))]
+def load(records: pathlib.Path) -> list[dict[str, Any]]:
+    """The results recorded in `records` ([] where there is no such file)."""
+    if not records.exists():
+        return []
+    return [json.loads(line) for line in records.read_text().splitlines() if line.strip()]
+
+
+def record(records: pathlib.Path, result: dict[str, Any]) -> None:
+    """Add `result` to `records`, whole or not at all (written beside it, then put in its place)."""
+    records.parent.mkdir(parents=True, exist_ok=True)
+    before = records.read_text() if records.exists() else ""
+    tmp = records.with_name(f".{records.name}.tmp")
+    tmp.write_text(before + json.dumps(result, sort_keys=True) + "\n")
+    tmp.replace(records)
+
+
+def table(found: list[dict[str, Any]]) -> str:
+    """This benchmark's section of docs/learning_curves.md from the results `found` ("" without any)."""
     if not found:
         return ""
     lines = [HEADING, "",
@@ -173,9 +197,9 @@ def with_section(text: str, heading: str, new: str) -> str:
     return before + new + ("\n" + after if after else "")
 
 
-def publish(results: pathlib.Path, docs: pathlib.Path) -> None:
+def publish(found: list[dict[str, Any]], docs: pathlib.Path) -> None:
     page = docs / "learning_curves.md"
-    text = table(results)
+    text = table(found)
     if not text:
         return
     tmp = page.with_name(f".{page.name}.tmp")
@@ -188,7 +212,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--mission", default="/tmp/mission", help="benchmarks.mission's --dir (default %(default)s)")
     p.add_argument("--tasks", default="PickPlace-v2", help="comma-separated (default %(default)s)")
     p.add_argument("--results", default="/tmp/gym-fetch-learning-curves",
-                   help="where runs and results go: <results>/pixels (default %(default)s)")
+                   help="where the trained runs go: <results>/runs (default %(default)s)")
+    p.add_argument("--records", default=str(RECORDS), help="the results file (default: the repo's %(default)s)")
     p.add_argument("--docs", default=str(pathlib.Path(__file__).resolve().parents[1] / "docs"),
                    help="where learning_curves.md is (default: the repo's docs/)")
     p.add_argument("--seeds", default=",".join(map(str, SEEDS)), help="training seeds (default %(default)s)")
@@ -201,24 +226,20 @@ def main(argv: list[str] | None = None) -> int:
     tasks = args.tasks.split(",")
     if unknown := [t for t in tasks if t not in known]:
         p.error(f"--tasks: unknown {', '.join(unknown)}; choose from {', '.join(known)}")
-    results, docs = pathlib.Path(args.results), pathlib.Path(args.docs)
-    (results / "pixels").mkdir(parents=True, exist_ok=True)
+    results, docs, records = pathlib.Path(args.results), pathlib.Path(args.docs), pathlib.Path(args.records)
     print(machine_line("torch"))
     new = 0
     for job in jobs(tasks, tuple(int(s) for s in args.seeds.split(","))):
-        target = results / "pixels" / f"{job.name}.json"
-        if target.exists():
+        if job in {Job.of(r) for r in load(records)}:
             continue
         if args.limit and new >= args.limit:
             break
         outcome = run(job, generated(pathlib.Path(args.mission), job.task), results)
-        tmp = target.with_name(f".{target.name}.tmp")
-        tmp.write_text(json.dumps(outcome, indent=1))
-        tmp.replace(target)
+        record(records, outcome)
         new += 1
         print(f"{job.name}: {100 * outcome['success_rate']:.0f} % (train {outcome['train_seconds']:.0f} s, "
               f"eval {outcome['eval_seconds']:.0f} s)", flush=True)
-        publish(results, docs)
+        publish(load(records), docs)
     return 0
 
 
