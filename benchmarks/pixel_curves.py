@@ -115,16 +115,33 @@ def _cell(done: list[dict[str, Any]], demos: int) -> str:
     return f"{np.mean(rates):.0f} ± {np.std(rates):.0f} ({', '.join(f'{x:.0f}' for x in rates)}){of}"
 
 
+def _place(r: dict[str, Any]) -> tuple[str, str, str]:
+    """Where a result was measured: (date, CPU, precision)."""
+    return r.get("date", "undated"), r.get("cpu", "unrecorded CPU"), r.get("precision", "unrecorded precision")
+
+
 def where_run(found: list[dict[str, Any]]) -> str:
     """The dates, CPUs and precisions the results were measured on, one clause each with the commits measured
-    there in the order their first run finished (the times in the table are only comparable within one clause)."""
+    there in the order their first run finished, numbered [1], [2] ... where there are several (the times in the
+    table are only comparable within one clause, and say which)."""
     places: dict[tuple[str, str, str], collections.Counter[str]] = collections.defaultdict(collections.Counter)
     for r in sorted(found, key=lambda r: r.get("finished", 0.0)):
-        key = (r.get("date", "undated"), r.get("cpu", "unrecorded CPU"), r.get("precision", "unrecorded precision"))
-        places[key][r.get("commit", "unrecorded")] += 1
-    return "; ".join(f"{date}, {cpu}, {precision}: "
-                     + ", ".join(f"git {commit} ({n} run{'s' * (n > 1)})" for commit, n in commits.items())
-                     for (date, cpu, precision), commits in sorted(places.items()))
+        places[_place(r)][r.get("commit", "unrecorded")] += 1
+    clauses = [f"{date}, {cpu}, {precision}: "
+               + ", ".join(f"git {commit} ({n} run{'s' * (n > 1)})" for commit, n in commits.items())
+               for (date, cpu, precision), commits in sorted(places.items())]
+    return "; ".join(clauses if len(clauses) == 1 else (f"[{i}] {c}" for i, c in enumerate(clauses, 1)))
+
+
+def _seconds(rows: list[dict[str, Any]], found: list[dict[str, Any]]) -> str:
+    """The mean training time of `rows`' runs, one per place they ran ("712 [1]; 377 [2]", numbered as
+    `where_run` numbers the places of all the results `found`): a mean over two machines would be neither's."""
+    places = sorted({_place(r) for r in found})
+    means = {place: np.mean([r["train_seconds"] for r in rows if _place(r) == place]) for place in places
+             if any(_place(r) == place for r in rows)}
+    if len(places) == 1:
+        return f"{next(iter(means.values())):.0f}"
+    return "; ".join(f"{seconds:.0f} [{places.index(place) + 1}]" for place, seconds in means.items())
 
 
 def _train_demos(run_dir: pathlib.Path) -> int:
@@ -160,7 +177,7 @@ def table(found: list[dict[str, Any]]) -> str:
              "mask/train (their count after \"of\"; pixels: `--inputs pixels`, the `cnn-chunk` policy; state: the "
              f"task's `auto` policy), then {EPISODES} evaluation episodes on unseen seeds. Success %, mean ± std "
              "over the training seeds done (in brackets each seed's own, in seed order); the last column is the "
-             "mean training wall time of a run on 2 cores.", "",
+             "mean training wall time of a run on 2 cores (on each machine, numbered as below, where they differ).", "",
              "| task | sees | " + " | ".join(f"{n or 'all'} demos" for n in DEMOS)
              + " | train [s] per run |", "|---|---|" + "---|" * (len(DEMOS) + 1)]
     for task in sorted({r["task"] for r in found}):
@@ -172,8 +189,8 @@ def table(found: list[dict[str, Any]]) -> str:
             for n in DEMOS:
                 done = sorted((r for r in rows if r["demos"] == n), key=lambda r: r["seed"])
                 cells.append(_cell(done, n))
-            seconds = np.mean([r["train_seconds"] for r in rows])
-            lines.append(f"| `{task}` | {inputs} ({rows[0]['policy']}) | " + " | ".join(cells) + f" | {seconds:.0f} |")
+            lines.append(f"| `{task}` | {inputs} ({rows[0]['policy']}) | " + " | ".join(cells)
+                         + f" | {_seconds(rows, found)} |")
     lines += ["", f"Measured on 2 cores: {where_run(found)}."]
     return "\n".join(lines) + "\n"
 
