@@ -115,28 +115,38 @@ def _cell(done: list[dict[str, Any]], demos: int) -> str:
     return f"{np.mean(rates):.0f} ± {np.std(rates):.0f} ({', '.join(f'{x:.0f}' for x in rates)}){of}"
 
 
-def _place(r: dict[str, Any]) -> tuple[str, str, str]:
-    """Where a result was measured: (date, CPU, precision)."""
-    return r.get("date", "undated"), r.get("cpu", "unrecorded CPU"), r.get("precision", "unrecorded precision")
+def _place(r: dict[str, Any]) -> tuple[str, str]:
+    """Where a result was measured: (CPU, precision)."""
+    return r.get("cpu", "unrecorded CPU"), r.get("precision", "unrecorded precision")
+
+
+def _places(found: list[dict[str, Any]]) -> list[tuple[str, str]]:
+    """The places of the results `found`, in the order of the first date each was used on."""
+    first = {place: min(r.get("date", "undated") for r in found if _place(r) == place)
+             for place in {_place(r) for r in found}}
+    return sorted(first, key=lambda place: (first[place], *place))
 
 
 def where_run(found: list[dict[str, Any]]) -> str:
-    """The dates, CPUs and precisions the results were measured on, one clause each with the commits measured
-    there in the order their first run finished, numbered [1], [2] ... where there are several (the times in the
-    table are only comparable within one clause, and say which)."""
-    places: dict[tuple[str, str, str], collections.Counter[str]] = collections.defaultdict(collections.Counter)
+    """The CPUs and precisions the results were measured with, one clause each with its dates and the commits
+    measured there in the order their first run finished, numbered [1], [2] ... where there are several (the
+    times in the table are only comparable within one clause, and say which)."""
+    commits: dict[tuple[str, str], collections.Counter[str]] = collections.defaultdict(collections.Counter)
     for r in sorted(found, key=lambda r: r.get("finished", 0.0)):
-        places[_place(r)][r.get("commit", "unrecorded")] += 1
-    clauses = [f"{date}, {cpu}, {precision}: "
-               + ", ".join(f"git {commit} ({n} run{'s' * (n > 1)})" for commit, n in commits.items())
-               for (date, cpu, precision), commits in sorted(places.items())]
+        commits[_place(r)][r.get("commit", "unrecorded")] += 1
+    clauses = []
+    for cpu, precision in _places(found):
+        dates = sorted({r.get("date", "undated") for r in found if _place(r) == (cpu, precision)})
+        clauses.append(f"{dates[0]}{f' to {dates[-1]}' if len(dates) > 1 else ''}, {cpu}, {precision}: "
+                       + ", ".join(f"git {commit} ({n} run{'s' * (n > 1)})"
+                                   for commit, n in commits[(cpu, precision)].items()))
     return "; ".join(clauses if len(clauses) == 1 else (f"[{i}] {c}" for i, c in enumerate(clauses, 1)))
 
 
 def _seconds(rows: list[dict[str, Any]], found: list[dict[str, Any]]) -> str:
-    """The mean training time of `rows`' runs, one per place they ran ("712 [1]; 377 [2]", numbered as
+    """The mean training time of `rows`' runs, one per place they ran ("712 [1]; 377 [3]", numbered as
     `where_run` numbers the places of all the results `found`): a mean over two machines would be neither's."""
-    places = sorted({_place(r) for r in found})
+    places = _places(found)
     means = {place: np.mean([r["train_seconds"] for r in rows if _place(r) == place]) for place in places
              if any(_place(r) == place for r in rows)}
     if len(places) == 1:
