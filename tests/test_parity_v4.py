@@ -46,9 +46,16 @@ BEFORE_3_7 = pytest.mark.xfail(
 ON_TABLE = 0.39
 """[m] below this the object has left the table top (fallen off or through it)."""
 
+_PUCK_EDGES_CHANGED = pytest.mark.xfail(
+    tuple(int(v) for v in mujoco.__version__.split(".")[:3]) >= (4, 0, 1),
+    reason="mujoco 4.0.1 fixed single-shot multicontact for cylinder edge collisions (its #3748, #3752), and "
+           "Slide's puck is a cylinder: where a finger meets its edge it moves otherwise than in v4 on 3.11 "
+           "(object p50 0.4 um, p95 5.1 cm, max 8.1 cm over these rollouts; 4.0.0 within the bounds)",
+    strict=False)
+
 
 @BEFORE_3_7
-@pytest.mark.parametrize("task", TASKS)
+@pytest.mark.parametrize("task", [pytest.param(t, marks=_PUCK_EDGES_CHANGED) if t == "Slide" else t for t in TASKS])
 def test_same_actions_same_motion(reference: dict[str, np.ndarray], task: str) -> None:
     """Over the random-action rollouts, the issue's bounds: grip site <= 5 mm at p95 and <= 2 cm at
     most, object <= 1 cm at p95; both envs agree on is_success at (nearly) every step.
