@@ -143,10 +143,10 @@ def where_run(found: list[dict[str, Any]]) -> str:
     return "; ".join(clauses if len(clauses) == 1 else (f"[{i}] {c}" for i, c in enumerate(clauses, 1)))
 
 
-def _seconds(rows: list[dict[str, Any]], found: list[dict[str, Any]]) -> str:
-    """The mean training time of `rows`' runs, one per place they ran ("712 [1]; 377 [3]", numbered as
-    `where_run` numbers the places of all the results `found`): a mean over two machines would be neither's."""
-    places = _places(found)
+def _seconds(rows: list[dict[str, Any]], places: list[tuple[str, str]]) -> str:
+    """The mean training time of `rows`' runs, one per place they ran ("712 [1]; 377 [3]", numbered by their
+    index in `places`, all the results' places, as `where_run` numbers them): a mean over two machines would be
+    neither's."""
     means = {place: np.mean([r["train_seconds"] for r in rows if _place(r) == place]) for place in places
              if any(_place(r) == place for r in rows)}
     if len(places) == 1:
@@ -190,6 +190,7 @@ def table(found: list[dict[str, Any]]) -> str:
              "mean training wall time of a run on 2 cores (on each machine, numbered as below, where they differ).", "",
              "| task | sees | " + " | ".join(f"{n or 'all'} demos" for n in DEMOS)
              + " | train [s] per run |", "|---|---|" + "---|" * (len(DEMOS) + 1)]
+    places = _places(found)
     for task in sorted({r["task"] for r in found}):
         for inputs in INPUTS:
             rows = [r for r in found if r["task"] == task and r["inputs"] == inputs]
@@ -200,7 +201,7 @@ def table(found: list[dict[str, Any]]) -> str:
                 done = sorted((r for r in rows if r["demos"] == n), key=lambda r: r["seed"])
                 cells.append(_cell(done, n))
             lines.append(f"| `{task}` | {inputs} ({rows[0]['policy']}) | " + " | ".join(cells)
-                         + f" | {_seconds(rows, found)} |")
+                         + f" | {_seconds(rows, places)} |")
     lines += ["", f"Measured on 2 cores: {where_run(found)}."]
     return "\n".join(lines) + "\n"
 
@@ -255,18 +256,21 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--tasks: unknown {', '.join(unknown)}; choose from {', '.join(known)}")
     results, docs, records = pathlib.Path(args.results), pathlib.Path(args.docs), pathlib.Path(args.records)
     print(machine_line("torch"))
+    found = load(records)
+    done = {Job.of(r) for r in found}
     new = 0
     for job in jobs(tasks, tuple(int(s) for s in args.seeds.split(","))):
-        if job in {Job.of(r) for r in load(records)}:
+        if job in done:
             continue
         if args.limit and new >= args.limit:
             break
         outcome = run(job, generated(pathlib.Path(args.mission), job.task), results)
         record(records, outcome)
+        found.append(outcome)
         new += 1
         print(f"{job.name}: {100 * outcome['success_rate']:.0f} % (train {outcome['train_seconds']:.0f} s, "
               f"eval {outcome['eval_seconds']:.0f} s)", flush=True)
-        publish(load(records), docs)
+        publish(found, docs)
     return 0
 
 

@@ -12,7 +12,8 @@ from fetch.experts import Expert, make_expert
 from fetch.experts.base import Stage
 
 SEEDS = range(100, 106)
-_OLD_ARM = tuple(int(v) for v in mujoco.__version__.split(".")[:2]) < (3, 7)
+_MUJOCO = tuple(int(v) for v in mujoco.__version__.split(".")[:3])
+_OLD_ARM = _MUJOCO[:2] < (3, 7)
 # Slide's expert (strikes, at Fetch*-v4's geometry and 50 steps, played out in its twin first) solves
 # 96 % of the benchmark's 200 seeds on mujoco 4.0 (27 % with action noise 0.1). Its strike table was
 # measured on 4.0; before 3.7 the arm moves differently (tests/test_parity_v4.py): there the table's
@@ -22,7 +23,7 @@ BEFORE_MUJOCO_3_7 = pytest.mark.xfail(
     reason="the strike sizes were measured on mujoco 4.0; before 3.7 the arm moves differently "
            "(tests/test_parity_v4.py) and a strike lands the puck up to 11 cm and 15 degrees elsewhere",
     strict=False)
-_PUCK_EDGES_CHANGED = tuple(int(v) for v in mujoco.__version__.split(".")[:3]) >= (4, 0, 1)
+_PUCK_EDGES_CHANGED = _MUJOCO >= (4, 0, 1)
 # mujoco 4.0.1 fixed single-shot multicontact for cylinder edge collisions (its #3748, #3752): the puck is a
 # cylinder, and a diagonal strike meets its edge with a fingertip's corner. The strike table was measured on 4.0.0.
 SINCE_MUJOCO_4_0_1 = pytest.mark.xfail(

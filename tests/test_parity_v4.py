@@ -36,8 +36,9 @@ def test_same_seed_same_start_and_goal(reference: dict[str, np.ndarray], task: s
         np.testing.assert_allclose(obs["desired_goal"], reference[f"{task}/reset_goal"][i], rtol=0, atol=1e-6)
 
 
+_MUJOCO = tuple(int(v) for v in mujoco.__version__.split(".")[:3])
 BEFORE_3_7 = pytest.mark.xfail(
-    tuple(int(v) for v in mujoco.__version__.split(".")[:2]) < (3, 7),
+    _MUJOCO[:2] < (3, 7),
     reason="before mujoco 3.7.0 (bisected: 3.6.0 drifts, 3.7.0 does not) the hand drifts ~0.3 mm a step "
            "from v4's path when the target moves (grip p50 6-7 mm, p95 13 mm over these rollouts on 3.3.0; "
            "4.0.0: 0.04 / 0.5 mm): an engine change in 3.7.0, the model being the same",
@@ -47,7 +48,7 @@ ON_TABLE = 0.39
 """[m] below this the object has left the table top (fallen off or through it)."""
 
 _PUCK_EDGES_CHANGED = pytest.mark.xfail(
-    tuple(int(v) for v in mujoco.__version__.split(".")[:3]) >= (4, 0, 1),
+    _MUJOCO >= (4, 0, 1),
     reason="mujoco 4.0.1 fixed single-shot multicontact for cylinder edge collisions (its #3748, #3752), and "
            "Slide's puck is a cylinder: where a finger meets its edge it moves otherwise than in v4 on 3.11 "
            "(object p50 0.4 um, p95 5.1 cm, max 8.1 cm over these rollouts; 4.0.0 within the bounds)",
