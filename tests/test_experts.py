@@ -25,12 +25,9 @@ BEFORE_MUJOCO_3_7 = pytest.mark.xfail(
     strict=False)
 _PUCK_EDGES_CHANGED = _MUJOCO >= (4, 0, 1)
 # mujoco 4.0.1 fixed single-shot multicontact for cylinder edge collisions (its #3748, #3752): the puck is a
-# cylinder, and a diagonal strike meets its edge with a fingertip's corner. The strike table was measured on 4.0.0.
-SINCE_MUJOCO_4_0_1 = pytest.mark.xfail(
-    _PUCK_EDGES_CHANGED,
-    reason="the strike table was measured on mujoco 4.0.0; 4.0.1's fix to cylinder edge contacts (the puck's edge "
-           "against a fingertip's corner) sends a diagonal strike up to ~17 degrees off its line (seeds 100-111)",
-    strict=False)
+# cylinder, and a diagonal strike meets its edge with a fingertip's corner. The strike table and the corner's place
+# (`fetch.experts.slide.CORNER`) are measured on 4.0.1; on 4.0.0 the puck goes within 2 degrees of the diagonal, on
+# 4.0.1 4-6 degrees short of it (the corner slides along the rim as the hand goes on along x).
 
 
 def test_make_expert_takes_an_env_or_an_id() -> None:
@@ -172,12 +169,14 @@ def _strikes(seeds: range) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, flo
 
 
 @BEFORE_MUJOCO_3_7
-@SINCE_MUJOCO_4_0_1
 def test_slide_strikes_send_the_puck_along_an_axis_or_a_diagonal() -> None:
     """An x strike uses one fingertip's face (the puck's centre 12 mm across, off the slot between
     the fingertips, where it wedged and tipped up to 14 degrees) and a diagonal one the corner: the
     puck goes along x, or at 45 degrees, within a few degrees (a short strike: within 8 mm of its
-    line, a few mm of contact offset turning it by more degrees), and stays flat."""
+    line, a few mm of contact offset turning it by more degrees), and stays flat. On mujoco >= 4.0.1
+    a diagonal strike goes 4-6 degrees short of 45 on these seeds (the corner placed as before 4.0.1
+    sent it 15-20 degrees short)."""
+    bound = 7.0 if _PUCK_EDGES_CHANGED else 4.0
     strikes = [s for s in _strikes(range(100, 112)) if s[0][0] != 0.0 and np.linalg.norm(s[2] - s[1]) > 0.05]
     assert len(strikes) >= 6
     for line, before, after, tilt in strikes:
@@ -185,7 +184,7 @@ def test_slide_strikes_send_the_puck_along_an_axis_or_a_diagonal() -> None:
         error = np.degrees(np.arctan2(moved[1], moved[0]) - np.arctan2(line[1], line[0]))
         across = abs(float(moved @ np.array([-line[1], line[0]]))) / float(np.linalg.norm(line))
         went = np.degrees(np.arctan2(moved[1], moved[0]))
-        assert abs(error) < 4.0 or across < 0.008, f"along {line}: went {went:.1f} deg, {across * 1000:.0f} mm off"
+        assert abs(error) < bound or across < 0.008, f"along {line}: went {went:.1f} deg, {across * 1000:.0f} mm off"
         assert tilt < 3.0, f"the puck tipped {tilt:.1f} degrees"
 
 
@@ -259,20 +258,20 @@ def test_slide_twin_follows_the_episode_exactly_until_it_gets_another_action() -
 
 
 def test_slide_plays_its_plan_out_in_the_twin_and_strikes_first_what_lands() -> None:
-    """Seed 21: the strike table's two-strike plan ends 10 cm from the goal (on mujoco 4.0.0, where the table was
-    measured; on 3.3 and 4.0.1 it happens to win this seed); played out in the twin it falls short, and a first
-    strike chosen there wins the episode."""
+    """Seed 47: the strike table's plan ends 16 cm from the goal (on mujoco 4.0.1, where the table was measured;
+    on 3.3 and 4.0.0 it happens to win this seed); played out in the twin it falls short, and a first strike
+    chosen there wins the episode."""
     from fetch.experts.slide import Slide
     env = gym.make("Slide-v2")
 
     def distance(expert: Expert) -> float:
-        obs, _ = env.reset(seed=21)
+        obs, _ = env.reset(seed=47)
         expert.reset()
         for _ in range(50):
             obs, _, _, _, info = env.step(expert(obs))
         return float(info["distance"])
 
-    if not _OLD_ARM and not _PUCK_EDGES_CHANGED:  # the premise holds where the table was measured
+    if _PUCK_EDGES_CHANGED:  # the premise holds where the table was measured
         assert distance(Slide(env.unwrapped.observation_layout)) > 0.05  # type: ignore[attr-defined]
     assert distance(make_expert(env)) < 0.05
 

@@ -11,7 +11,7 @@ each diagonal), and the puck's displacement once it stops is recorded: along x, 
 diagonal; the mean over y = 0.75 +- across and both diagonals. A grid point the hand cannot strike
 from counts as 0. Sizes are made non-decreasing (a longer strike never plans a shorter shot).
 
-    .venv/bin/python -m tools.slide_strikes                       # ~3 min, writes the package's table
+    .venv/bin/python -m tools.slide_strikes                       # ~8 min, writes the package's table
     .venv/bin/python -m tools.slide_strikes --out /tmp/t.npz --print
 
 (from the repository root). How far noisy strikes land from this table: `python -m experiments.slide_spread`."""
@@ -43,6 +43,9 @@ TABLES = ("along_x", "along_diagonal", "along_y_out", "along_y_in")
 face) away from the centre line or towards it (the arm pushes harder inwards)."""
 SETTLE_STEPS = 150
 """[steps] at most this long for the line-up, the strike and the glide."""
+CLEAR, LIFT_STEPS = 0.05, 4
+"""[m, steps] a puck put this close to where the hand starts (x = 1.0 m on the centre line) would sit on the
+fingers, which carry it off the table on mujoco 4.0.1: the hand is lifted this many steps first."""
 
 
 class Forced(Slide):
@@ -81,14 +84,17 @@ def strike(env: gym.Env, xy: tuple[float, float], line: tuple[float, float], siz
     """The puck's displacement [m, xy] from one strike from rest at `xy`, or None if the hand
     never got to strike; with `noise`, every action (line-up and strike) gets Gaussian noise of
     that std, as benchmarks/expert_success.py adds it."""
-    env.reset(seed=0)
+    obs = env.reset(seed=0)[0]
+    layout = env.unwrapped.observation_layout
+    if np.linalg.norm(obs["observation"][layout["grip_pos"]][:2] - xy) < CLEAR:
+        for _ in range(LIFT_STEPS):  # the puck would be put on the fingers, and carried off the table
+            env.step(np.float32([0.0, 0.0, 1.0, 0.0]))
     model, data = env.unwrapped.model, env.unwrapped.data
     joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "object0:joint")
     adr = model.jnt_qposadr[joint]
     data.qpos[adr:adr + 2] = xy
     mujoco.mj_forward(model, data)
     obs = env.step(np.zeros(4, np.float32))[0]
-    layout = env.unwrapped.observation_layout
     expert = Forced(layout, [(line, size)])
     before, struck_at = None, 0
     for step in range(SETTLE_STEPS):
