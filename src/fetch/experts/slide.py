@@ -61,10 +61,10 @@ FINGER = 0.012
 """[m] where the puck's centre is across the hand (y) from the grip site when one fingertip pushes
 it along x: on the +y fingertip (0.8 to 15.2 mm), off the slot between the two and off its corner."""
 CORNER = 0.0177
-"""[m] ...and how far past the fingers' side it is when their corner pushes it along the diagonal: the puck's
-radius over sqrt(2), so that the corner meets its rim at 45 degrees and the push goes along the diagonal
-(mujoco >= 4.0.1 resolves the cylinder's edge against the corner as geometry says; 4.0.0's edge contacts sent
-the puck near the diagonal from 8.8 mm, which on 4.0.1 sends it 15-20 degrees off)."""
+"""[m] ...and how far past the fingers' side it is when their corner pushes it along the diagonal: the
+puck's radius over sqrt(2), so that the corner meets its rim at 45 degrees (on mujoco >= 4.0.1 the puck
+goes 4-6 degrees short of the diagonal, the corner sliding along the rim; 8.8 mm, right for 4.0.0's edge
+contacts, sends it 15-20 degrees short there)."""
 BOX = (np.array([-0.0164, SIDES[1]]), np.array([FRONT, SIDES[0]]))
 """[m] the closed fingers' extent (xy) from the grip site: low, high corners."""
 
