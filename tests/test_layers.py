@@ -11,8 +11,8 @@ import pytest
 SRC = pathlib.Path(__file__).resolve().parents[1] / "src" / "fetch"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("fetch._environ", "fetch._gl", "fetch._processes", "fetch._progress", "fetch._durable", "fetch.errors",
-     "fetch.timing", "fetch.stopping", "fetch._references"),
+    ("fetch._environ", "fetch._gl", "fetch._processes", "fetch._progress", "fetch._durable", "fetch._confine",
+     "fetch.errors", "fetch.timing", "fetch.stopping", "fetch._references"),
     ("fetch.robot",),
     ("fetch.scene",),
     ("fetch.observation", "fetch.tasks"),

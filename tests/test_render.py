@@ -106,24 +106,46 @@ def test_human_window_under_xvfb_and_full_check_env() -> None:
 
 def test_a_render_pool_removes_the_directories_that_killed_processes_left(tmp_path, monkeypatch) -> None:  # noqa: ANN001
     """A SIGKILLed process runs no cleanup and left its render pool's directory in $TMPDIR every time;
-    the next pool removes those whose process is gone, and leaves a running process's alone."""
+    the next pool removes those whose lock nobody holds, and leaves alone a running pool's (its lock
+    held, whatever PID namespace it runs in) and everything that only bears the name: a user's folder
+    named like a pool's (`fetch-render-123-my results`), garbage numbers (`fetch-render-²-x`, 20 digits
+    - once a ValueError and an OverflowError for every user), a link, a file."""
+    import fcntl
     import tempfile
 
-    from fetch.dataset.frames import DIR_PREFIX, RenderPool
+    from fetch.dataset.frames import DIR_PREFIX, LOCK_NAME, RenderPool
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
-                          text=True, check=True)
-    stale = tmp_path / f"{DIR_PREFIX}{int(gone.stdout)}-abc"
-    running = tmp_path / f"{DIR_PREFIX}{os.getppid()}-def"
-    other = tmp_path / f"{DIR_PREFIX}notapid"
-    for d in (stale, running, other):
+    stale, running = tmp_path / f"{DIR_PREFIX}abc", tmp_path / f"{DIR_PREFIX}def"
+    for d in (stale, running):
         d.mkdir()
         (d / "0.npy").write_bytes(b"x")
-    with RenderPool("Reach-v2", {}, 16, workers=1) as pool:
-        assert pool._dir.parent == tmp_path and pool._dir.name.startswith(f"{DIR_PREFIX}{os.getpid()}-")
-        assert not stale.exists() and running.exists() and other.exists()
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([running.name, other.name])
+        (d / LOCK_NAME).write_bytes(b"")
+    held = os.open(running / LOCK_NAME, os.O_RDWR)
+    fcntl.flock(held, fcntl.LOCK_EX)  # as another process's pool, perhaps in another PID namespace, holds it
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / LOCK_NAME).write_bytes(b"")
+    (victim / "thesis.txt").write_text("mine")
+    kept = {f"{DIR_PREFIX}123-my results", f"{DIR_PREFIX}\u00b2-x", f"{DIR_PREFIX}{10**19}-x", f"{DIR_PREFIX}999999-y"}
+    for name in kept:
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "notes.txt").write_text("mine")
+    (tmp_path / f"{DIR_PREFIX}link").symlink_to(victim)
+    (tmp_path / f"{DIR_PREFIX}file").write_text("mine")
+    try:
+        with RenderPool("Reach-v2", {}, 16, workers=1) as pool:
+            assert pool._dir.parent == tmp_path and pool._dir.name.startswith(DIR_PREFIX)
+            assert not stale.exists() and running.exists()
+            assert all((tmp_path / name / "notes.txt").read_text() == "mine" for name in kept)
+            assert (victim / "thesis.txt").read_text() == "mine" and (tmp_path / f"{DIR_PREFIX}file").exists()
+            with RenderPool("Reach-v2", {}, 16, workers=1) as second:  # a second pool sees the first one running
+                assert pool._dir.exists() and second._dir != pool._dir
+        assert not pool._dir.exists() and not second._dir.exists()
+    finally:
+        os.close(held)
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == sorted([running.name, "victim", f"{DIR_PREFIX}link", f"{DIR_PREFIX}file", *kept])
 
 
 def test_render_ahead_closed_early_leaves_cancelling_its_jobs_to_the_pool(monkeypatch) -> None:  # noqa: ANN001

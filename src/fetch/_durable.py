@@ -8,6 +8,7 @@ import contextlib
 import errno
 import os
 import pathlib
+import tempfile
 from collections.abc import Iterator
 
 NO_ROOM = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
@@ -32,12 +33,22 @@ def fsync_path(path: pathlib.Path) -> None:
         os.close(fd)
 
 
+def temporary(path: pathlib.Path) -> pathlib.Path:
+    """A new empty file beside `path`, `.<name>.<random>.tmp`, created here and now (O_EXCL, no link
+    followed): never a name that was already there, so a link a stranger planted in the folder (at
+    `.demos.hdf5.tmp`, say) is never written through."""
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    return pathlib.Path(name)
+
+
 @contextlib.contextmanager
 def replacing(path: pathlib.Path) -> Iterator[pathlib.Path]:
-    """Yields a temporary path to write `path`'s new content to; when the block finishes, it is
-    flushed to disk and renamed over `path` (and the directory flushed). If the block or the
-    rename fails, the old `path` is untouched and the temporary file removed."""
-    tmp = path.with_name(f".{path.name}.tmp")
+    """Yields a temporary path (`temporary`) to write `path`'s new content to; when the block finishes,
+    it is flushed to disk and renamed over `path` (and the directory flushed). If the block or the
+    rename fails, the old `path` is untouched and the temporary file removed. A link at `path` is
+    replaced by the file, never written through."""
+    tmp = temporary(path)
     try:
         yield tmp
         fsync_path(tmp)

@@ -22,6 +22,11 @@ class DatasetError(FetchError):
     """A dataset that cannot be read or written as asked: missing, foreign, corrupt, locked, mismatched."""
 
 
+class OutsideError(DatasetError):
+    """A folder's file names a path outside the folder (absolute, `..`, a symbolic link out), or a tool
+    would write through a link: refused before anything is read, written or moved (docs/security.md)."""
+
+
 def install_hint(extra: str) -> str:
     """The command that adds an optional part (a `pyproject.toml` extra): gym-fetch-v2 installs from its
     source tree, so it is `pip install ".[extra]"` run there (`pip install "gym-fetch-v2[extra]"` would

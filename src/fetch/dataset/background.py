@@ -12,7 +12,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from fetch._durable import why
+from fetch._durable import temporary, why
 from fetch.dataset import schema
 from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
@@ -35,10 +35,8 @@ def require_writable(directory: pathlib.Path) -> None:
     """DatasetError now, before an attempt is made, unless files can be made in `directory`: without
     write access (a read-only dataset, as a user other than its owner; root writes through) the
     collector ran the attempt and failed at its first save. A hidden file made and removed tells."""
-    probe = directory / f".probe-{os.getpid()}.tmp"
     try:
-        probe.write_bytes(b"")
-        probe.unlink()
+        temporary(directory / "probe").unlink()  # a fresh name: never a file planted at a known one
     except OSError as e:
         raise DatasetError(f"cannot write in {directory}: {why(e)} (nothing was recorded)") from e
 

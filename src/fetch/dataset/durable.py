@@ -14,9 +14,14 @@ from typing import Any
 
 import h5py
 
-from fetch._durable import atomic_write, fsync_path
+from fetch._confine import inside, require_no_link, require_plain_file
+from fetch._durable import atomic_write, fsync_path, temporary
 from fetch.dataset import schema
-from fetch.errors import DatasetError
+from fetch.errors import DatasetError, OutsideError
+
+
+class BusyError(DatasetError):
+    """Another collector or tool holds the dataset."""
 
 
 def lock_directory(directory: pathlib.Path, alternative: str) -> Any:
@@ -34,7 +39,7 @@ def _held(fd: int, refusal: str) -> int:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as e:
         os.close(fd)
-        raise DatasetError(refusal) from e
+        raise BusyError(refusal) from e
     return fd
 
 
@@ -49,18 +54,23 @@ def unlock_directory(handle: Any) -> None:
 def editing(index: pathlib.Path) -> Iterator[None]:
     """Hold a dataset while a tool reads and edits it: a collector's directory (it has `episodes/` beside
     `index`) itself, so no collector appends meanwhile; a single file (a merge's) by a lock file beside it
-    (`.<name>.lock`), which outlives the file's replacement, so two tools never edit it at once (render-obs
+    (`.<name>.lock`, removed again when the edit ends), so two tools never edit it at once (render-obs
     and split on one merged file shared a temporary file: 5 of 6 crashed, once leaking images into it)."""
     if (index.parent / schema.EPISODES_DIR).is_dir():
         handle = lock_directory(index.parent, "run it when the collector has finished")
+        lock = None
     else:
         if not index.exists():  # no lock file left behind for a dataset that is not there
             raise DatasetError(f"{index}: no such file")
-        handle = _lock_file(index.with_name(f".{index.name}.lock"), index)
+        lock = index.with_name(f".{index.name}.lock")
+        handle = _lock_file(lock, index)
     try:
         finish_rewrites(index)
         yield
     finally:
+        if lock is not None:  # while still held: whoever opens the name next makes a new file (see _lock_file)
+            with contextlib.suppress(OSError):
+                lock.unlink()
         unlock_directory(handle)
 
 
@@ -71,30 +81,97 @@ def journal_of(path: pathlib.Path) -> pathlib.Path:
 
 def finish_rewrites(index: pathlib.Path) -> None:
     """Make the renames that a `Rewrites` stopped part-way through (a SIGKILL between them) noted
-    beside `index`, if any; the caller holds the dataset (`editing`)."""
+    beside `index`, if any; the caller holds the dataset (`editing`). A journal that is not one this
+    package writes is refused whole (`journal_renames`), before anything is renamed."""
     journal = journal_of(index)
-    try:
-        renames = json.loads(journal.read_text())
-    except FileNotFoundError:
+    renames = journal_renames(index)
+    if renames is None:
         return
-    except (OSError, ValueError) as e:
-        raise DatasetError(f"{journal} (the renames of an interrupted edit) cannot be read: {e}; "
-                           "remove it if the dataset reads as it should") from e
     for tmp, path in renames:
-        if (index.parent / tmp).exists():  # renamed already otherwise
-            os.replace(index.parent / tmp, index.parent / path)
-    for directory in {(index.parent / path).parent for _, path in renames}:
+        if tmp.exists():  # renamed already otherwise
+            os.replace(tmp, path)
+    for directory in {path.parent for _, path in renames}:
         fsync_path(directory)
     journal.unlink()
     fsync_path(index.parent)
 
 
-def _lock_file(lock: pathlib.Path, dataset: pathlib.Path) -> Any:
+def journal_renames(index: pathlib.Path) -> list[tuple[pathlib.Path, pathlib.Path]] | None:
+    """The renames (temporary file, file it replaces) noted beside `index` (None: no journal), each checked
+    to be one a `Rewrites` of this dataset makes: both names inside the index's folder with no link on the
+    way; the file is the index or a demo file in `episodes/`; the temporary one is that file's (`.<name>.
+    <anything>.tmp` beside it) and a plain file. DatasetError naming the journal otherwise: a journal in a
+    stranger's folder must not move their files (`["payload.sh", "/home/me/.bashrc"]`) or a folder in."""
+    journal = journal_of(index)
+    root = index.parent
+    if not journal.exists() and not journal.is_symlink():
+        return None
+    refused = f"{journal} (the renames of an interrupted edit)"
     try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as e:
-        raise DatasetError(f"cannot lock {dataset} for editing ({lock}: {e.strerror})") from e
-    return _held(fd, f"{dataset} is being edited by another tool (it holds {lock.name}); wait for it to finish")
+        require_plain_file(journal, "the edit journal")
+        renames = json.loads(journal.read_text())
+    except (OSError, ValueError, DatasetError) as e:
+        raise DatasetError(f"{refused} cannot be read: {one_line(e)}; nothing was renamed; remove it if the "
+                           "dataset reads as it should") from e
+    shape = isinstance(renames, list) and all(
+        isinstance(entry, list) and len(entry) == 2 and all(isinstance(n, str) for n in entry) for entry in renames)
+    if not shape:
+        shown = one_line(repr(renames))[:80]
+        raise DatasetError(f"{refused} is not a list of [temporary name, file name] pairs ({shown}); nothing was "
+                           "renamed; remove it if the dataset reads as it should")
+    checked = []
+    for tmp_name, name in renames:
+        what = f"{journal.name}'s entry"
+        try:
+            path = inside(root, name, what, write=True)
+            tmp = inside(root, tmp_name, what, write=True)
+        except OutsideError as e:
+            raise OutsideError(f"{refused}: {e}; nothing was renamed") from e
+        ours = path == index or (path.parent == root / schema.EPISODES_DIR and _demo_file_name(path.name))
+        if not ours or tmp.parent != path.parent or not tmp.name.startswith(f".{path.name}.") \
+                or not tmp.name.endswith(".tmp"):
+            raise OutsideError(f"{refused}: the entry [{tmp_name!r}, {name!r}] is not a rename an edit of this "
+                               f"dataset makes (a `.{path.name}.*.tmp` beside {path.name}, {index.name} or "
+                               f"{schema.EPISODES_DIR}/demo_<n>.hdf5); nothing was renamed")
+        try:
+            require_plain_file(tmp, "its temporary file")
+            require_plain_file(path, "the file it replaces")
+        except OutsideError as e:
+            raise OutsideError(f"{refused}: {e}; nothing was renamed") from e
+        checked.append((tmp, path))
+    return checked
+
+
+def _demo_file_name(name: str) -> bool:
+    stem, dot, suffix = name.partition(".")
+    try:
+        schema.demo_index(stem)
+    except ValueError:
+        return False
+    return dot == "." and suffix == "hdf5"
+
+
+def one_line(e: BaseException | str) -> str:
+    return " ".join(str(e).split()) or type(e).__name__
+
+
+def _lock_file(lock: pathlib.Path, dataset: pathlib.Path) -> Any:
+    """`lock` held exclusively. It is created if missing (never through a link: O_NOFOLLOW), and it must
+    still be the file at that name once held: the holder before removed it on release, and a file
+    no longer at the name locks nobody out."""
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+        except OSError as e:
+            raise DatasetError(f"cannot lock {dataset} for editing ({lock}: {e.strerror})") from e
+        fd = _held(fd, f"{dataset} is being edited by another tool (it holds {lock.name}); wait for it to finish")
+        try:
+            same = os.path.samestat(os.fstat(fd), os.stat(lock, follow_symlinks=False))
+        except FileNotFoundError:
+            same = False
+        if same:
+            return fd
+        unlock_directory(fd)
 
 
 class Rewrites:
@@ -112,7 +189,8 @@ class Rewrites:
     def edit(self, path: pathlib.Path) -> Iterator[h5py.File]:
         tmp = self._copies.get(path)
         if tmp is None:
-            tmp = path.with_name(f".{path.name}.tmp")
+            require_no_link(path, "the dataset file")
+            tmp = temporary(path)
             self._copies[path] = tmp
             shutil.copyfile(path, tmp)
         with h5py.File(tmp, "r+") as f:

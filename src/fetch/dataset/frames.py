@@ -7,11 +7,14 @@ time, from any camera, at any size, bit-identical to images rendered while it wa
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
+import fcntl
 import itertools
 import multiprocessing
 import os
 import pathlib
 import shutil
+import stat
 import tempfile
 from collections.abc import Sequence
 from typing import Any
@@ -124,22 +127,47 @@ def _render_in_process(path: str, cameras: Sequence[str], seed: int | None) -> d
 
 
 DIR_PREFIX = "fetch-render-"
-"""A render pool's directory in $TMPDIR: this, then the pid of the process that made it."""
+"""A render pool's directory in $TMPDIR is named this and a random part."""
+LOCK_NAME = "pool.lock"
+"""The file in a pool's directory that the pool holds an flock on for its whole life."""
+
+
+def _make_dir() -> tuple[pathlib.Path, int]:
+    """A new pool directory and the descriptor of its held lock. It is made under a hidden name, locked,
+    then renamed to its `DIR_PREFIX` name: no pool ever sees a directory of that name unlocked while
+    its maker runs."""
+    making = pathlib.Path(tempfile.mkdtemp(prefix=f".{DIR_PREFIX}making-"))
+    fd = os.open(making / LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    final = pathlib.Path(tempfile.mkdtemp(prefix=DIR_PREFIX))
+    os.rename(making, final)  # over the empty directory mkdtemp reserved the name with
+    return final, fd
 
 
 def _remove_stale_dirs() -> None:
     """Remove the directories that render pools of processes no longer running left in $TMPDIR (a
-    SIGKILLed process runs no cleanup)."""
-    for stale in pathlib.Path(tempfile.gettempdir()).glob(f"{DIR_PREFIX}*-*"):
-        pid = stale.name[len(DIR_PREFIX):].split("-", 1)[0]
-        if not pid.isdigit():
+    SIGKILLed process runs no cleanup). A pool's directory is known by the lock its pool holds on the
+    file `LOCK_NAME` in it as long as it runs: the lock is the file system's, so a pool in another PID
+    namespace (a container) is seen as running too. Only this user's directories (not links) holding
+    that file are looked at, and only those whose lock can be taken are removed; whatever else bears
+    the prefix (a user's folder, another user's, a garbage name) is left alone."""
+    for stale in pathlib.Path(tempfile.gettempdir()).glob(f"{DIR_PREFIX}*"):
+        try:
+            info = os.lstat(stale)
+            if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.geteuid():
+                continue
+            fd = os.open(stale / LOCK_NAME, os.O_RDWR | os.O_NOFOLLOW)
+        except OSError:  # gone meanwhile, no lock file (not a pool's), or not ours to open
             continue
         try:
-            os.kill(int(pid), 0)
-        except ProcessLookupError:
-            shutil.rmtree(stale, ignore_errors=True)
-        except OSError:  # another user's process, still running
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:  # its pool is running
+            os.close(fd)
             continue
+        try:
+            shutil.rmtree(stale, ignore_errors=True)
+        finally:
+            os.close(fd)
 
 
 class RenderPool:
@@ -155,7 +183,7 @@ class RenderPool:
         # (Debian 12's 3.11.2 is one) a worker that dies while the pool writes to it deadlocks the
         # pool for good: its shutdown waits for a thread stuck writing to the dead worker.
         _remove_stale_dirs()
-        self._dir = pathlib.Path(tempfile.mkdtemp(prefix=f"{DIR_PREFIX}{os.getpid()}-"))
+        self._dir, self._lock = _make_dir()
         self._jobs = itertools.count()
         self._futures: set[concurrent.futures.Future[dict[str, np.ndarray]]] = set()  # not yet done
 
@@ -186,6 +214,10 @@ class RenderPool:
             stop_pool(self._pool, abandon=any(not f.done() for f in list(self._futures)))
         finally:
             shutil.rmtree(self._dir, ignore_errors=True)
+            if self._lock >= 0:  # once: the descriptor's number may be reused after close
+                with contextlib.suppress(OSError):
+                    os.close(self._lock)
+                self._lock = -1
 
     def __enter__(self) -> RenderPool:
         return self

@@ -13,10 +13,13 @@ from typing import Any
 import h5py
 import numpy as np
 
+from fetch._confine import inside
 from fetch.dataset import schema
 from fetch.dataset.demo_file import read_demo_group
-from fetch.dataset.durable import editing, journal_of
-from fetch.errors import DatasetError
+from fetch.dataset.durable import BusyError, editing, journal_renames
+from fetch.dataset.sealed import check_sealed
+from fetch.errors import DatasetError, OutsideError
+from fetch.tasks import ENV_IDS
 
 FILE_HELP = "a dataset file (demos.hdf5) or the directory that holds it"
 """The help of every subcommand's dataset argument (what `open_dataset` takes)."""
@@ -53,6 +56,9 @@ class Dataset:
                 or not isinstance(env_args.get("env_kwargs", {}), dict):
             raise DatasetError(f"{path}: data.attrs['env_args'] is {self.data_attrs.get('env_args')!r}, not the JSON "
                                "object {env_name: str, type, env_kwargs: object} robomimic reads")
+        if env_args["env_name"] not in ENV_IDS:  # Gymnasium would import the module before a ':' in it
+            raise DatasetError(f"{path}: data.attrs['env_args'] names the env {env_args['env_name']!r}, which is not "
+                               f"one of this package's ({', '.join(ENV_IDS)})")
         self.env_id: str = env_args["env_name"]
         self.env_kwargs: dict[str, Any] = dict(env_args.get("env_kwargs", {}))
         try:
@@ -64,6 +70,8 @@ class Dataset:
         for key, value in (("settings", self.settings), ("versions", self.versions)):
             if not isinstance(value, dict):
                 raise DatasetError(f"{path}: data.attrs['{key}'] is {self.data_attrs[key]!r}, not a JSON object")
+        self._sealed: set[str] = set()
+        """The demos in files of their own checked to read nothing outside them (`check_sealed`)."""
         names = []
         for name in keys:
             try:
@@ -125,6 +133,12 @@ class Dataset:
             raise DatasetError(f"{self.path}: demo {name!r} cannot be read{where}: {one_line(e)}") from e
         if not isinstance(group, h5py.Group):
             raise DatasetError(f"{self.path}: data/{name} is not a group")
+        if name not in self._sealed and group.file.filename != self.file.filename:  # the index's own: checked at open
+            try:
+                check_sealed(group, f"{self.path}: demo {name!r} (its file {group.file.filename})")
+            except READ_ERRORS as e:
+                raise DatasetError(f"{self.path}: demo {name!r} cannot be read: {one_line(e)}") from e
+            self._sealed.add(name)
         return group
 
     def _check_link(self, name: str) -> None:
@@ -135,11 +149,12 @@ class Dataset:
             link = self.file["data"].get(name, getlink=True)
             if not isinstance(link, h5py.ExternalLink):
                 return
-            home = self.path.parent.resolve()
-            target = (self.path.parent / link.filename).resolve()
-            if pathlib.PurePath(link.filename).is_absolute() or home not in target.parents:
-                raise DatasetError(f"{self.path}: demo {name!r} links to {link.filename}, outside the dataset's "
-                                   f"directory {home}; a dataset's demo files live beside its index (episodes/)")
+            try:
+                target = inside(self.path.parent, link.filename, f"demo {name!r}'s link")
+            except OutsideError as e:
+                raise OutsideError(f"{self.path}: demo {name!r} links to {link.filename}, outside the dataset's "
+                                   f"directory {self.path.parent.resolve()}; a dataset's demo files live beside its "
+                                   f"index ({schema.EPISODES_DIR}/)") from e
             if target.exists() and not target.is_file():
                 raise DatasetError(f"{self.path}: demo {name!r} links to {link.filename}, which is not a regular file")
 
@@ -158,14 +173,17 @@ class Dataset:
         return sorted((f for f in found.glob("demo_*.hdf5") if f.name not in listed and f.is_file()),
                       key=lambda f: (len(f.name), f.name))
 
-    def demo_file(self, name: str) -> tuple[pathlib.Path, str]:
+    def demo_file(self, name: str, write: bool = False) -> tuple[pathlib.Path, str]:
         """Where demo `name` is stored: (file, group path in it). A collector's dataset keeps each
-        demo in its own file, linked from the index; a merged one keeps them in the index itself."""
+        demo in its own file, linked from the index; a merged one keeps them in the index itself.
+        `write`: the caller replaces that file, so no symbolic link may be on the way to it."""
         link = self.file["data"].get(name, getlink=True)
         if link is None:
             self.demo(name)  # raises, naming the valid choices
         if isinstance(link, h5py.ExternalLink):
             self._check_link(name)
+            if write:
+                inside(self.path.parent, link.filename, f"{self.path}: demo {name!r}'s link", write=True)
             return self.path.parent / link.filename, link.path
         return self.path, f"data/{name}"
 
@@ -209,12 +227,14 @@ def plain_value(value: Any) -> Any:
 def open_dataset(path: str | os.PathLike[str], mode: str = "r") -> Dataset:
     """Open a dataset written by this package; DatasetError naming the file if it is not one."""
     p = resolve(path)
+    if p.parent == pathlib.Path(path) and p.is_symlink():  # the index a directory holds is its content
+        inside(p.parent, p.name, f"{p.parent}: the dataset's index")
     if not p.exists():
         raise DatasetError(f"{p}: no such file")
     if not p.is_file():  # a FIFO or a device would block the open, or read forever
         raise DatasetError(f"{p} is not a regular file; a dataset is an HDF5 file (or the directory that holds one)")
-    if journal_of(p).exists():  # an edit stopped between its renames: finish it, unless another tool holds it
-        with contextlib.suppress(DatasetError, OSError), editing(p):
+    if journal_renames(p) is not None:  # an edit stopped between its renames (the journal checked first):
+        with contextlib.suppress(BusyError, OSError), editing(p):  # finish it, unless another tool holds it
             pass
     try:
         file = h5py.File(p, mode)
@@ -238,6 +258,7 @@ def _checked(p: pathlib.Path, file: h5py.File) -> Dataset:
     if fmt != schema.FORMAT:
         raise DatasetError(f"{p} is not a gym-fetch-v2 dataset (data.attrs['format'] is {fmt!r}, expected "
                            f"{schema.FORMAT!r}); only datasets written by `gym-fetch collect` can be used here")
+    check_sealed(file, str(p), links_in="data")
     raw = plain_value(data.attrs.get("format_version"))
     if not isinstance(raw, int) or isinstance(raw, bool) or raw < 1:
         raise DatasetError(f"{p}: data.attrs['format_version'] is {raw!r}, not a version number (1 to "

@@ -80,7 +80,7 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
             env_id, env_kwargs, layout = ds.env_id, ds.env_kwargs, ds.layout
             names = list(ds.demo_names)
             require_valid(ds, names, images=False)
-            where = {name: ds.demo_file(name) for name in names}
+            where = {name: ds.demo_file(name, write=True) for name in names}
         if layout.cameras and size != layout.image_size:
             raise FetchError(f"{index} holds {layout.image_size}-pixel images ({', '.join(layout.cameras)}); a "
                              f"dataset has one image size, so use --size {layout.image_size}")

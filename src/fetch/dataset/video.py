@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from fetch._durable import temporary, why
 from fetch.errors import FetchError, UnknownNameError, install_hint
 from fetch.rendering import check_image_size
 
@@ -79,7 +80,10 @@ def write_video(path: str | os.PathLike[str], frames: Iterable[np.ndarray], fps:
     p = check_video_path(path, width, height)
     av = _av()
     gif = p.suffix.lower() == ".gif"
-    tmp = p.with_name(f".{p.name}.tmp")
+    try:
+        tmp = temporary(p)
+    except OSError as e:
+        raise FetchError(f"cannot write {p}: {why(e)}") from e
     count = 0
     try:
         with av.open(str(tmp), "w", format="gif" if gif else "mp4") as container:

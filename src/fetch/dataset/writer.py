@@ -24,12 +24,14 @@ from typing import TYPE_CHECKING, Any
 import h5py
 import numpy as np
 
+from fetch._confine import require_no_link
 from fetch._durable import atomic_write, why
 from fetch.dataset import schema
 from fetch.dataset.background import BackgroundWriter, require_writable
 from fetch.dataset.demo_file import hdf5_bytes, read_demo_group, write_demo_file
 from fetch.dataset.durable import finish_rewrites
 from fetch.dataset.episode import Demo
+from fetch.dataset.sealed import check_sealed
 from fetch.errors import DatasetError
 
 if TYPE_CHECKING:
@@ -110,6 +112,8 @@ class DatasetWriter(BackgroundWriter):
         self._renderer: RenderPool | None = None
         self.created = time.time()
         try:
+            require_no_link(self.index_path, "the dataset's index")  # a stranger's folder: never written through
+            require_no_link(self.episodes_dir, "the dataset's folder of demo files")
             self.episodes_dir.mkdir(exist_ok=True)
             require_writable(self.episodes_dir)
             if self.index_path.exists():
@@ -145,10 +149,9 @@ class DatasetWriter(BackgroundWriter):
         from fetch.dataset.reader import open_dataset
 
         finish_rewrites(self.index_path)  # an edit's renames that a kill stopped part-way: its copies are .tmp
-        for stale in self.out_dir.glob(".*.tmp"):
-            stale.unlink()
-        for stale in self.episodes_dir.glob(".*.tmp"):
-            stale.unlink()
+        for stale in [*self.out_dir.glob(".*.tmp"), *self.episodes_dir.glob(".*.tmp")]:
+            if stale.is_file() and not stale.is_symlink():  # what an edit or a save left; never a planted folder
+                stale.unlink()
         with open_dataset(self.index_path) as existing:
             self._check_matches(existing.header_attrs())
             inside = [n for n in existing.demo_names if existing.demo_file(n)[0] == existing.path]
@@ -176,13 +179,14 @@ class DatasetWriter(BackgroundWriter):
                 if name not in known and schema.demo_index(name) >= self._next_index:
                     orphans.append((schema.demo_index(name), name, path))
         for _, name, path in sorted(orphans):
-            if not path.is_file():
+            if not path.is_file() or path.is_symlink():
                 raise DatasetError(f"{path} is not a regular file; a demo file is an HDF5 file. Move it away "
                                    "(nothing was written)")
             # A demo file is renamed into place whole (`write_demo_file`): one that cannot be read, or
             # lacks its group, was put there by something else, and saving demo_N would overwrite it.
             try:
                 with h5py.File(path, "r") as f:
+                    check_sealed(f, str(path))
                     if not isinstance(f.get(name), h5py.Group):
                         raise DatasetError(f"{path} is not a demo of this dataset (it has no group {name!r}), so "
                                            "it is not taken in, and the next demo would overwrite it; move it away "
@@ -328,6 +332,7 @@ class DatasetWriter(BackgroundWriter):
         path = self.episodes_dir / f"{name}.hdf5"
         if demo is None:
             with h5py.File(path, "r") as f:
+                check_sealed(f, str(path))
                 demo = read_demo_group(f[name])
         cameras = self._images_missing(demo.arrays)
         if not cameras:
