@@ -237,3 +237,24 @@ def test_two_tools_never_edit_one_merged_file_at_once(reach_demos: pathlib.Path,
             assert len(err.splitlines()) == 1 and "is being edited by another tool" in err, err
     assert merged.read_bytes() == before
     assert main(["split", str(merged), "--seed", "3"]) == 0
+
+
+@pytest.mark.parametrize("tool", ["split", "render_obs", "export", "info"])
+def test_an_edit_of_a_merged_file_leaves_no_lock_file_and_never_follows_a_planted_one(
+        reach_demos: pathlib.Path, tmp_path: pathlib.Path, tool: str) -> None:
+    """`.all.hdf5.lock` stayed beside a merged file after every edit; and a link planted at that name was
+    opened (created through) by the next edit."""
+    merged = tmp_path / "all.hdf5"
+    shutil.copytree(reach_demos, tmp_path / "b")
+    assert main(["merge", str(reach_demos), str(tmp_path / "b"), "--out", str(merged)]) == 0
+    argv = {"split": ["split", str(merged)],
+            "render_obs": ["render-obs", str(merged), "--camera", "front", "--size", "16", "--workers", "1"],
+            "export": ["export", str(merged), "--to", "npz", "--out", str(tmp_path / "npz")],
+            "info": ["info", str(merged)]}[tool]
+    assert main(argv) == 0
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+    lock = tmp_path / ".all.hdf5.lock"
+    lock.symlink_to(tmp_path / "victim.txt")
+    if tool in ("split", "render_obs"):  # the two that edit the file in place take its lock
+        assert main([*argv, "--overwrite"] if tool == "render_obs" else argv) == 2
+        assert not (tmp_path / "victim.txt").exists() and lock.is_symlink()
