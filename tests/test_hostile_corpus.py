@@ -183,6 +183,14 @@ def env_name(name: str | Callable[[pathlib.Path], str]) -> Callable[[pathlib.Pat
     return plant
 
 
+def env_kwargs(kwargs: dict[str, object]) -> Callable[[pathlib.Path, pathlib.Path], None]:
+    def plant(d: pathlib.Path, v: pathlib.Path) -> None:
+        with h5py.File(d / "demos.hdf5", "r+") as f:
+            args = json.loads(f["data"].attrs["env_args"])
+            f["data"].attrs["env_args"] = json.dumps({**args, "env_kwargs": {**args["env_kwargs"], **kwargs}})
+    return plant
+
+
 def shipped_module(d: pathlib.Path) -> str:
     (d / f"{MODULE}.py").write_text(f"import pathlib\npathlib.Path({str(d.parent / 'victim' / 'imported.txt')!r})"
                                     ".write_text('ran')\n")
@@ -226,6 +234,10 @@ ATTACKS: dict[str, Attack] = {
     "env_shipped_module": Attack(env_name(shipped_module), MODULE),
     "env_venv": Attack(env_name("venv.__main__:Reach-v2"), r"venv"),
     "env_not_ours": Attack(env_name("FetchReach-v4"), r"FetchReach-v4"),
+    # env kwargs that would size a renderer, open a window or run an episode for ever
+    **{f"env_kwargs_{key}": Attack(env_kwargs({key: value}), key)
+       for key, value in (("image_size", 10**6), ("cameras", ["front"] * 10**4), ("render_mode", "human"),
+                          ("max_episode_steps", 10**12), ("reward_type", 10**100), ("looks", {"a": 1}))},
 }
 
 

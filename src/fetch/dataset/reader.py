@@ -18,7 +18,8 @@ from fetch.dataset import schema
 from fetch.dataset.demo_file import read_demo_group
 from fetch.dataset.durable import BusyError, editing, journal_renames
 from fetch.dataset.sealed import check_sealed
-from fetch.errors import DatasetError, OutsideError
+from fetch.env import recorded_kwargs
+from fetch.errors import DatasetError, FetchError, OutsideError
 from fetch.tasks import ENV_IDS
 
 FILE_HELP = "a dataset file (demos.hdf5) or the directory that holds it"
@@ -60,7 +61,10 @@ class Dataset:
             raise DatasetError(f"{path}: data.attrs['env_args'] names the env {env_args['env_name']!r}, which is not "
                                f"one of this package's ({', '.join(ENV_IDS)})")
         self.env_id: str = env_args["env_name"]
-        self.env_kwargs: dict[str, Any] = dict(env_args.get("env_kwargs", {}))
+        try:  # they reach gym.make: only how rewards are given and how the scene looks may come from a file
+            self.env_kwargs: dict[str, Any] = dict(recorded_kwargs(env_args.get("env_kwargs", {})))
+        except FetchError as e:
+            raise DatasetError(f"{path}: data.attrs['env_args']: {e}") from e
         try:
             self.layout = schema.layout_from_json(self.data_attrs["layout"])
         except (KeyError, ValueError, TypeError) as e:
