@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import functools
 import math
+import reprlib
 from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple, SupportsFloat
 
@@ -17,7 +18,7 @@ from fetch import camera_obs, rendering
 from fetch import observation as ob
 from fetch.compiled import STATE_SPEC, compiled_task, mjb_hash, portable_hash
 from fetch.errors import FetchError, UnknownNameError
-from fetch.looks import Looks, check_looks
+from fetch.looks import LOOKS, Looks, check_looks
 from fetch.robot import Robot, action_rule, checked_actions
 from fetch.tasks import mirroring_ids, task_class
 from fetch.tasks.base import FINGER_PAIRS, REWARD_TYPES, Task, goal_distance, mocap_index
@@ -25,6 +26,28 @@ from fetch.tasks.base import reward as task_reward
 from fetch.timing import CONTROL_DT
 
 RENDER_MODES = ("human", "rgb_array", "depth_array")
+RECORDED_KWARGS: dict[str, tuple[str | bool, ...]] = {"reward_type": REWARD_TYPES, "hide_goal": (False, True),
+                                                      "looks": LOOKS}
+"""The `FetchEnv` arguments a file may set (a dataset's `env_kwargs`, and a run's, copied from its dataset), with
+their values: how rewards are given and how the scene looks. The others are the caller's: the task is the
+registered id's, the window and the observation's images the tool's or the policy's; read from a file they would
+clash with the caller's own or size a renderer."""
+
+
+def recorded_kwargs(raw: object) -> dict[str, str | bool]:
+    """`raw`, env kwargs read from a file, when it is a mapping of `RECORDED_KWARGS` to one of their values; else a
+    one-line FetchError saying what is wrong."""
+    if not isinstance(raw, dict):
+        raise FetchError(f"env_kwargs must be an object of {', '.join(RECORDED_KWARGS)}, got {type(raw).__name__}")
+    for key, value in raw.items():
+        if key not in RECORDED_KWARGS:
+            raise FetchError(f"env_kwargs {reprlib.repr(key)} cannot come from a file; those that can: "
+                             f"{', '.join(RECORDED_KWARGS)}")
+        # exact types: JSON's 1 is no more hide_goal=True than "sparse " is a reward type
+        if not any(type(value) is type(c) and value == c for c in RECORDED_KWARGS[key]):
+            raise FetchError(f"env_kwargs {key}={reprlib.repr(value)}: choose one of "
+                             f"{', '.join(repr(c) for c in RECORDED_KWARGS[key])}")
+    return dict(raw)
 
 
 class Reflection(NamedTuple):

@@ -2,8 +2,9 @@
 
 `kinds.py` declares the kinds of policy and `policies.py` their torch side; `settings.py` decides what
 a run trains unless told (the CLI and `train.train` alike); `data.py` reads demos; `train.py`,
-`runtime.py` (a trained policy as a callable) and `evaluate.py` run them; `device.py` and `takeover.py`
-make a policy a collection device.
+`runtime.py` (a trained policy as a callable) and `evaluate.py` run them; `checkpoint.py` reads and writes a
+run's file, every field of which `checked.py` checks before use; `device.py` and `takeover.py` make a policy a
+collection device.
 """
 
 from __future__ import annotations

@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import reprlib
+import sys
 from collections.abc import Mapping
 from typing import Any
 
 from fetch.errors import FetchError, UnknownNameError
-from fetch.rendering import IMAGE_QUALITIES
+from fetch.rendering import IMAGE_QUALITIES, MAX_IMAGE_SIZE
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +70,7 @@ _BY_NAME = {k.name: k for k in KINDS}
 
 
 def kind(name: str) -> PolicyKind:
-    if name not in _BY_NAME:
+    if not isinstance(name, str) or name not in _BY_NAME:
         raise UnknownNameError("policy", name, POLICY_KINDS)
     return _BY_NAME[name]
 
@@ -86,6 +88,33 @@ as -1, so a[3] weighs in the loss about as it does recorded. Spanning +-1 (the s
 several times the hand's moves around the grasp: on PickPlace from `pauses` pad demos the policy then rested
 with the block grasped (78 % against 86 % recorded and 87 % at 0.5, 400 episodes), while Bin-pick's gain held
 (97.4 % at both spans; docs/training.md)."""
+
+
+MAX_SIZES: Mapping[str, int] = {"hidden": 4096, "layers": 16, "members": 32, "chunk": 250, "seq_len": 250}
+"""The most each size setting may be: 16 times the widest default (256 units; a 4096-wide layer is 16.8 M
+weights, 67 MB), 8 times the deepest (2 layers), 6 times the largest ensemble a task trains (5); a chunk or
+a window of 250 steps is 10 s at the control rate, 5 times a task's horizon (acting keeps `chunk` chunks of
+`chunk` actions per episode: 50 episodes at once, 50 MB). Far beyond what a policy is trained with, far below
+what would exhaust memory when a checkpoint from a stranger is built; a checkpoint's weights are also checked
+against the network its settings describe before it is built (`fetch.learn.checked`)."""
+MAX_INPUTS = 1024
+"""The most entries a policy's input may have: 27 times the largest task's (Bin-pick, its goal offsets included:
+37)."""
+MAX_ENSEMBLE_DECAY = math.log(sys.float_info.max) / MAX_SIZES["chunk"]
+"""|ensemble_decay| at most this (about 2.8; the kinds use 0.01 and -1): the weights exp(-decay * i) of up to
+`MAX_SIZES["chunk"]` chunks stay within a float."""
+
+
+def _whole(name: str, value: object, low: int, high: int) -> None:
+    """FetchError unless `value` is a whole number (not a bool) from `low` to `high`."""
+    if not isinstance(value, int) or isinstance(value, bool) or value < low:
+        raise FetchError(f"policy {name} must be a whole number >= {low}, got {reprlib.repr(value)}")
+    if value > high:
+        raise FetchError(f"policy {name} must be at most {high}, got {value}")
+
+
+def _number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,14 +153,15 @@ class PolicySettings:
 
     def __post_init__(self) -> None:
         kind(self.kind)
-        if self.loss not in LOSSES:
+        if not isinstance(self.loss, str) or self.loss not in LOSSES:
             raise UnknownNameError("loss", self.loss, LOSSES)
-        for name in ("hidden", "layers", "chunk", "seq_len", "members"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise FetchError(f"policy {name} must be a whole number >= 1, got {value!r}")
+        for name, most in MAX_SIZES.items():
+            _whole(name, getattr(self, name), 1, most)
         if not isinstance(self.goal_offsets, bool):
-            raise FetchError(f"goal_offsets must be true or false, got {self.goal_offsets!r}")
+            raise FetchError(f"goal_offsets must be true or false, got {reprlib.repr(self.goal_offsets)}")
+        for name in ("blind", "cameras"):
+            if not isinstance(getattr(self, name), tuple | list):
+                raise FetchError(f"policy {name} must be a list, got {reprlib.repr(getattr(self, name))}")
         object.__setattr__(self, "blind", tuple(self.blind))  # a checkpoint may hold a list
         object.__setattr__(self, "cameras", tuple(self.cameras))
         pixels = kind(self.kind).inputs == "pixels"
@@ -142,15 +172,15 @@ class PolicySettings:
                              "a pixel policy: --inputs pixels")
         if not all(isinstance(c, str) and c for c in self.cameras) or len(set(self.cameras)) != len(self.cameras):
             raise FetchError(f"cameras must be distinct camera names, got {list(self.cameras)}")
-        if not all(isinstance(i, int) and i >= 0 for i in self.blind):
-            raise FetchError(f"blind must list input entries (whole numbers >= 0), got {list(self.blind)}")
-        if isinstance(self.finger_scale, bool) or not 0.0 <= self.finger_scale < 1.0:
-            raise FetchError(f"finger_scale must be at least 0 and below 1, got {self.finger_scale!r}")
-        if isinstance(self.finger_span, bool) or not 0.0 < self.finger_span <= 1.0:
-            raise FetchError(f"finger_span must be above 0 and at most 1, got {self.finger_span!r}")
-        decay = self.ensemble_decay
-        if isinstance(decay, bool) or not isinstance(decay, int | float) or not math.isfinite(decay):
-            raise FetchError(f"ensemble_decay must be a number, got {decay!r}")
+        if not all(isinstance(i, int) and not isinstance(i, bool) and i >= 0 for i in self.blind):
+            raise FetchError(f"blind must list input entries (whole numbers >= 0), got {reprlib.repr(self.blind)}")
+        if not _number(self.finger_scale) or not 0.0 <= self.finger_scale < 1.0:
+            raise FetchError(f"finger_scale must be at least 0 and below 1, got {reprlib.repr(self.finger_scale)}")
+        if not _number(self.finger_span) or not 0.0 < self.finger_span <= 1.0:
+            raise FetchError(f"finger_span must be above 0 and at most 1, got {reprlib.repr(self.finger_span)}")
+        if not _number(self.ensemble_decay) or abs(self.ensemble_decay) > MAX_ENSEMBLE_DECAY:
+            raise FetchError(f"ensemble_decay must be a number from {-MAX_ENSEMBLE_DECAY:.2f} to "
+                             f"{MAX_ENSEMBLE_DECAY:.2f}, got {reprlib.repr(self.ensemble_decay)}")
 
     @classmethod
     def of(cls, kind_name: str, **settings: Any) -> PolicySettings:
@@ -173,16 +203,18 @@ class PolicyConfig(PolicySettings):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not isinstance(self.obs_size, int) or self.obs_size < 1:
-            raise FetchError(f"policy obs_size must be a whole number >= 1, got {self.obs_size!r}")
-        if not isinstance(self.image_size, int) or self.image_size < 0 or bool(self.cameras) != (self.image_size > 0):
-            raise FetchError(f"policy image_size must be the images' side in pixels (0 without cameras), got "
-                             f"{self.image_size!r}")
-        if (self.image_quality or "") not in (IMAGE_QUALITIES if self.cameras else ("",)):
+        _whole("obs_size", self.obs_size, 1, MAX_INPUTS)
+        size = self.image_size
+        if not isinstance(size, int) or isinstance(size, bool) or not 0 <= size <= MAX_IMAGE_SIZE \
+                or bool(self.cameras) != (size > 0):
+            raise FetchError(f"policy image_size must be the images' side in pixels, 1 to {MAX_IMAGE_SIZE} (0 without "
+                             f"cameras), got {reprlib.repr(size)}")
+        if not isinstance(self.image_quality, str) \
+                or self.image_quality not in (IMAGE_QUALITIES if self.cameras else ("",)):
             raise FetchError(f"policy image_quality must be one of {', '.join(IMAGE_QUALITIES)} with cameras, \"\" "
-                             f"without, got {self.image_quality!r}")
+                             f"without, got {reprlib.repr(self.image_quality)}")
         if not all(i < self.obs_size for i in self.blind):
-            raise FetchError(f"blind must list input entries 0..{self.obs_size - 1}, got {list(self.blind)}")
+            raise FetchError(f"blind must list input entries 0..{self.obs_size - 1}, got {reprlib.repr(self.blind)}")
 
     @staticmethod
     def upgraded(raw: Mapping[str, Any]) -> dict[str, Any]:
@@ -200,7 +232,10 @@ class PolicyConfig(PolicySettings):
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = set(raw) - known
         if unknown:
-            raise FetchError(f"unknown policy settings {sorted(unknown)}; known: {sorted(known)}")
+            raise FetchError(f"unknown policy settings {reprlib.repr(sorted(map(str, unknown)))}; known: "
+                             f"{sorted(known)}")
+        if "kind" not in raw:
+            raise FetchError(f"the policy settings name no kind; known: {', '.join(POLICY_KINDS)}")
         return cls(**raw)
 
     @property

@@ -13,6 +13,7 @@ import torch
 from fetch.camera_obs import image_key
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
+from fetch.learn.checked import load_weights, one_line
 from fetch.learn.data import Normalizer, acted_actions, flat_obs
 from fetch.learn.kinds import PolicyConfig
 from fetch.learn.policies import build, implementation
@@ -89,17 +90,18 @@ class Policy:
 
 
 def load(run: str | os.PathLike[str]) -> Policy:
-    """The policy a `gym-fetch train` run holds (its last checkpoint)."""
+    """The policy a `gym-fetch train` run holds (its last checkpoint), every field of which `ckpt.read` checks."""
     state = ckpt.read(run)
+    file = ckpt.file_of(run)
     config = PolicyConfig.from_dict(dict(state["policy"]))
     model = build(config)
-    try:
-        model.load_state_dict(state["model"])
-    except RuntimeError as e:
-        raise FetchError(f"{run}: the checkpoint's weights do not fit its policy settings: {e}") from e
-    norm = Normalizer(state["norm"]["mean"].numpy(), state["norm"]["std"].numpy())
+    load_weights(file, model, state["model"])
     source = state["source"]
     seeds = frozenset(int(s) for s in state["seeds"].tolist())
     horizon = state.get("horizon")
-    return Policy(config, model, norm, str(source["env_id"]), json.loads(source["env_kwargs"]), seeds,
-                  int(state["step"]), None if horizon is None else int(horizon))
+    try:
+        norm = Normalizer(state["norm"]["mean"].numpy(), state["norm"]["std"].numpy())
+        return Policy(config, model, norm, str(source["env_id"]), json.loads(source["env_kwargs"]), seeds,
+                      int(state["step"]), None if horizon is None else int(horizon))
+    except (RuntimeError, ValueError, TypeError, KeyError) as e:  # what the checks did not foresee: one line still
+        raise FetchError(f"{file}: its policy cannot be made from it ({one_line(e)})") from e

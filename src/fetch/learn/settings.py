@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import reprlib
 from typing import Any
 
 from fetch.dataset.habits import layout_of
@@ -29,6 +30,9 @@ FROM_STEPS_DIVISOR = 4
 """`train --from RUN` goes on for a quarter of RUN's steps unless told otherwise."""
 CORRECTION_WEIGHT = 4
 """How many times each stretch a person drove in a corrected attempt counts among the training demos."""
+MAX_TRAIN_STEPS = 10_000_000
+"""The most gradient steps a run may take: 1000 times a task's default (5000-10000), days of training on a CPU;
+a stranger's checkpoint cannot make `train --from` (a quarter of its steps) run on for ever."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,21 +60,26 @@ class TrainConfig:
     """`PRECISIONS`; `train` decides "auto" for its device before the run starts (the checkpoint keeps which)."""
 
     def __post_init__(self) -> None:
-        if self.precision not in PRECISIONS:
-            raise FetchError(f"--precision {self.precision!r}: choose one of {', '.join(PRECISIONS)}")
+        if not isinstance(self.precision, str) or self.precision not in PRECISIONS:
+            raise FetchError(f"--precision {reprlib.repr(self.precision)}: choose one of {', '.join(PRECISIONS)}")
         for name in ("steps", "batch_size", "checkpoint_every", "threads"):
             value = getattr(self, name)
-            if not isinstance(value, int) or value < 1:
-                raise FetchError(f"--{name.replace('_', '-')} must be a whole number >= 1, got {value!r}")
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise FetchError(f"--{name.replace('_', '-')} must be a whole number >= 1, got {reprlib.repr(value)}")
+        if self.steps > MAX_TRAIN_STEPS:
+            raise FetchError(f"--steps must be at most {MAX_TRAIN_STEPS}, got {self.steps}")
         for name in ("seed", "demos"):
             value = getattr(self, name)
-            if not isinstance(value, int) or value < 0:
-                raise FetchError(f"--{name} must be a whole number >= 0, got {value!r}")
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise FetchError(f"--{name} must be a whole number >= 0, got {reprlib.repr(value)}")
+        if not isinstance(self.mirror, bool):
+            raise FetchError(f"mirror must be true or false, got {reprlib.repr(self.mirror)}")
         for name in ("lr", "weight_decay", "obs_noise"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0) or (name == "lr" and value == 0):
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            if not (number and math.isfinite(value) and value >= 0) or (name == "lr" and value == 0):
                 raise FetchError(f"--{name.replace('_', '-')} must be a finite number "
-                                 f"{'> 0' if name == 'lr' else '>= 0'}, got {value!r}")
+                                 f"{'> 0' if name == 'lr' else '>= 0'}, got {reprlib.repr(value)}")
 
 
 POLICY_FLAGS = ("chunk", "seq_len", "hidden", "layers", "members", "goal_offsets", "velocities", "cameras",

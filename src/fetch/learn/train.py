@@ -18,6 +18,7 @@ import torch
 
 from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
+from fetch.learn.checked import load_optimizer, load_weights
 from fetch.learn.data import Demos, Normalizer, load_demos, policy_inputs, with_reflections
 from fetch.learn.kinds import PolicyConfig
 from fetch.learn.policies import Samples, behaviour_loss, build, implementation, samples
@@ -186,7 +187,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
         if ckpt.plain(learnt) != ckpt.plain(policy_config.as_dict()):
             raise FetchError(f"--from {start_from}: its policy has other settings than the ones asked for; leave "
                              "the policy flags out and the run's are used")
-        model.load_state_dict(base["model"])
+        load_weights(ckpt.file_of(str(start_from)), model, base["model"])
         norm = Normalizer(base["norm"]["mean"].numpy(), base["norm"]["std"].numpy())
     model.to(device)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
@@ -198,8 +199,8 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
         saved = {**dataclasses.asdict(TrainConfig()), **previous["train"]}
         ckpt.require_same(run, {**previous, "train": saved, "policy": PolicyConfig.upgraded(previous["policy"])},
                           policy_config.as_dict(), dataclasses.asdict(config), source)
-        model.load_state_dict(previous["model"])
-        optimizer.load_state_dict(previous["optimizer"])
+        load_weights(ckpt.path(run), model, previous["model"])
+        load_optimizer(ckpt.path(run), optimizer, previous["optimizer"])
         torch.set_rng_state(previous["rng"])
         history = {k: list(v) for k, v in previous["history"].items()}
         start = int(previous["step"])
