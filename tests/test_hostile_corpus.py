@@ -191,6 +191,13 @@ def env_kwargs(kwargs: dict[str, object]) -> Callable[[pathlib.Path, pathlib.Pat
     return plant
 
 
+def settings(changed: dict[str, object]) -> Callable[[pathlib.Path, pathlib.Path], None]:
+    def plant(d: pathlib.Path, v: pathlib.Path) -> None:
+        with h5py.File(d / "demos.hdf5", "r+") as f:
+            f["data"].attrs["settings"] = json.dumps({**json.loads(f["data"].attrs["settings"]), **changed})
+    return plant
+
+
 def shipped_module(d: pathlib.Path) -> str:
     (d / f"{MODULE}.py").write_text(f"import pathlib\npathlib.Path({str(d.parent / 'victim' / 'imported.txt')!r})"
                                     ".write_text('ran')\n")
@@ -234,6 +241,9 @@ ATTACKS: dict[str, Attack] = {
     "env_shipped_module": Attack(env_name(shipped_module), MODULE),
     "env_venv": Attack(env_name("venv.__main__:Reach-v2"), r"venv"),
     "env_not_ours": Attack(env_name("FetchReach-v4"), r"FetchReach-v4"),
+    # numbers that are used as they are
+    **{f"settings_max_steps_{i}": Attack(settings({"max_steps": value}), "max_steps")
+       for i, value in enumerate(("abc", 10**12, -5, 1.5, True, None))},
     # env kwargs that would size a renderer, open a window or run an episode for ever
     **{f"env_kwargs_{key}": Attack(env_kwargs({key: value}), key)
        for key, value in (("image_size", 10**6), ("cameras", ["front"] * 10**4), ("render_mode", "human"),

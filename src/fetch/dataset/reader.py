@@ -7,6 +7,7 @@ import dataclasses
 import json
 import os
 import pathlib
+import reprlib
 from collections.abc import Callable
 from typing import Any
 
@@ -20,7 +21,7 @@ from fetch.dataset.durable import BusyError, editing, journal_renames
 from fetch.dataset.sealed import check_sealed
 from fetch.env import recorded_kwargs
 from fetch.errors import DatasetError, FetchError, OutsideError
-from fetch.tasks import ENV_IDS
+from fetch.tasks import ENV_IDS, MAX_STEPS
 
 FILE_HELP = "a dataset file (demos.hdf5) or the directory that holds it"
 """The help of every subcommand's dataset argument (what `open_dataset` takes)."""
@@ -74,6 +75,10 @@ class Dataset:
         for key, value in (("settings", self.settings), ("versions", self.versions)):
             if not isinstance(value, dict):
                 raise DatasetError(f"{path}: data.attrs['{key}'] is {self.data_attrs[key]!r}, not a JSON object")
+        limit = self.settings.get("max_steps", 1)  # an export's step limit (`export.env_spec`)
+        if type(limit) is not int or not 1 <= limit <= MAX_STEPS:
+            raise DatasetError(f"{path}: data.attrs['settings'] gives max_steps {reprlib.repr(limit)}, not a whole "
+                               f"number of steps from 1 to {MAX_STEPS}")
         self._sealed: set[str] = set()
         """The demos in files of their own checked to read nothing outside them (`check_sealed`)."""
         names = []
