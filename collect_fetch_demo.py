@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""The seed's demonstration collector, kept for its users: every flag of the original script, with
+"""The project's original demonstration collector, kept for its users: every flag of the original script, with
 its meaning, runs `gym-fetch collect` (see `gym-fetch collect --help`)."""
 
 from __future__ import annotations

@@ -294,7 +294,12 @@ def describe_error(exc: BaseException) -> str:
 
 
 def mark(ok: bool) -> str:
-    return "yes" if ok else "**no**"
+    return "yes" if ok else "no"
+
+
+def target_line(what: str, met: Sequence[bool]) -> str:
+    """One sentence under a table for a target its rows are held to, rather than a yes/no column."""
+    return f"Target {what}: met by {sum(met)} of {len(met)} tasks."
 
 
 def table(head: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
@@ -314,11 +319,11 @@ def overhead_table(subjects: Sequence[Subject]) -> str:
         t = s.timings
         step, phys = t.step_us, t.physics_us
         rows.append([s.env_id, f"{step:.0f}", f"{phys:.0f}", f"{step - phys:.0f}", f"{step / phys:.3f}",
-                     spread(t.round_ratios()), f"{1e6 / step:.0f}", f"{s.recording.replay_max_diff:.1g}",
-                     mark(step / phys <= TARGET_RATIO)])
+                     spread(t.round_ratios()), f"{1e6 / step:.0f}", f"{s.recording.replay_max_diff:.1g}"])
+    met = [s.timings.step_us / s.timings.physics_us <= TARGET_RATIO for s in subjects]
     return table(["task", "env.step µs", "mj_step µs", "overhead µs", "ratio",
-                  "ratio per round: median (min-max)", "steps/s", "replay diff", f"ratio ≤ {TARGET_RATIO}"],
-                 rows)
+                  "ratio per round: median (min-max)", "steps/s", "replay diff"], rows) + \
+        f"\n\n{target_line(f'env.step / mj_step ≤ {TARGET_RATIO}', met)}"
 
 
 def make_table(subjects: Sequence[Subject], makes: dict[str, MakeTimes]) -> str:
@@ -326,11 +331,13 @@ def make_table(subjects: Sequence[Subject], makes: dict[str, MakeTimes]) -> str:
     for s in subjects:
         m = makes[s.env_id]
         per_round = [1e6 / us for us in s.timings.reset_us]
-        rows.append([s.env_id, f"{m.first_ms:.0f}", f"{m.again_ms:.1f}", mark(m.again_ms <= TARGET_REMAKE_MS),
-                     f"{max(per_round):.0f}", f"{statistics.median(per_round):.0f}",
-                     mark(max(per_round) >= TARGET_RESETS_PER_S)])
-    return table(["task", "first make ms", "make again ms", f"≤ {TARGET_REMAKE_MS:.0f} ms",
-                  "resets/s (best round)", "resets/s (median round)", f"≥ {TARGET_RESETS_PER_S:.0f}/s"], rows)
+        rows.append([s.env_id, f"{m.first_ms:.0f}", f"{m.again_ms:.1f}", f"{max(per_round):.0f}",
+                     f"{statistics.median(per_round):.0f}"])
+    remade = [makes[s.env_id].again_ms <= TARGET_REMAKE_MS for s in subjects]
+    reset = [1e6 / min(s.timings.reset_us) >= TARGET_RESETS_PER_S for s in subjects]
+    return (table(["task", "first make ms", "make again ms", "resets/s (best round)", "resets/s (median round)"], rows)
+            + f"\n\n{target_line(f'make again ≤ {TARGET_REMAKE_MS:.0f} ms', remade)} "
+            + target_line(f"resets ≥ {TARGET_RESETS_PER_S:.0f}/s (best round)", reset))
 
 
 def compare_table(ours: Subject, theirs: Subject, makes: dict[str, MakeTimes]) -> str:

@@ -1,4 +1,4 @@
-"""The seed's install test: make every task, reset, take random steps, render; one line per task."""
+"""The install test: make every task, reset it, take random steps and render offscreen; one line per task."""
 
 from __future__ import annotations
 

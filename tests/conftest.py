@@ -2,13 +2,28 @@
 
 from __future__ import annotations
 
+import os
 import pathlib
+import sys
 from collections.abc import Iterator
 
-import gymnasium as gym
-import pytest
 
-import fetch
+def _working_folder_off_the_path() -> None:
+    """`python -m pytest` puts the working folder first on sys.path, so a folder left there named like a
+    package (`lerobot/`, from an export) would be imported in its place (issue 72). The tests import installed
+    packages and their own helpers only (this folder, which pytest puts on the path itself)."""
+    here = pathlib.Path(__file__).resolve().parent
+    working = pathlib.Path.cwd().resolve()
+    if working != here:
+        sys.path[:] = [p for p in sys.path if pathlib.Path(os.path.abspath(p or ".")).resolve() != working]
+
+
+_working_folder_off_the_path()
+
+import gymnasium as gym  # noqa: E402  (after the working folder is off the path)
+import pytest  # noqa: E402
+
+import fetch  # noqa: E402
 
 ENV_IDS = list(fetch.ENV_IDS)
 

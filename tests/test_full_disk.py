@@ -23,6 +23,8 @@ from fetch.dataset import open_dataset, validate
 TOOL = [sys.executable, "-c", "import sys; from fetch.cli import main; sys.exit(main(sys.argv[1:]))"]
 
 DISK = "disk"
+PROGRESS = re.compile(r"^[\w -]+ \[[# ]+\] \d+/\d+ ")
+"""A progress line (`fetch._progress.Bar`): a tool whose stderr is not a terminal writes one every few seconds."""
 """The tmpfs's mount point under the test's tmp_path; the tool runs with it as its working directory."""
 
 
@@ -39,7 +41,7 @@ class Run:
     left: pathlib.Path
 
     def one_line_error(self) -> str:
-        err = self.stderr.strip()
+        err = "\n".join(line for line in self.stderr.strip().splitlines() if not PROGRESS.match(line))
         assert "Traceback" not in self.stderr + self.stdout, self.stderr
         assert self.rc == 2, (self.rc, self.stdout, err)
         assert len(err.splitlines()) == 1, err

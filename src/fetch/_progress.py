@@ -1,4 +1,4 @@
-"""A small progress bar on stderr for long commands (only when stderr is a terminal)."""
+"""Progress on stderr for long commands: a bar redrawn on a terminal, a line every few seconds elsewhere."""
 
 from __future__ import annotations
 
@@ -13,25 +13,65 @@ from typing import Any, TypeVar
 T = TypeVar("T")
 
 
-def progress(items: Iterable[T], total: int, label: str, unit: str = "demos") -> Iterator[T]:
-    """Yield `items`, drawing `label [####    ] i/total unit, rate/s` as they pass."""
-    stream = sys.stderr
-    live = stream.isatty()
-    start = last = time.perf_counter()
-    done = 0
-    for item in items:
-        yield item
-        done += 1
+EVERY_LINE = 5.0
+"""[s] How often a long command writes a progress line where stderr is not a terminal (a file or a pipe: CI,
+`nohup`, a notebook): a sign of life in the log without flooding it."""
+REDRAW = 0.1
+"""[s] How often the bar is redrawn on a terminal, at most."""
+
+
+class Bar:
+    """One progress line on stderr, `show(text)` as the work goes: on a terminal redrawn in place; elsewhere
+    written as a line of its own every `EVERY_LINE` seconds, so a work that ends sooner prints nothing, and one
+    that printed ends with its last line (`show(text, last=True)`)."""
+
+    def __init__(self) -> None:
+        self.live = sys.stderr.isatty()
+        self.last = time.perf_counter()
+        self.drawn = False
+        """something is on the terminal's line, or lines were written"""
+
+    def show(self, text: str, last: bool = False) -> None:
         now = time.perf_counter()
-        if live and (now - last > 0.1 or done == total):
-            last = now
-            width = 24
-            filled = int(width * done / total) if total else width
-            rate = done / (now - start) if now > start else 0.0
-            stream.write(f"\r{label} [{'#' * filled}{' ' * (width - filled)}] {done}/{total} {unit}, {rate:.1f}/s")
-            stream.flush()
-    if live and done:
-        stream.write("\n")
+        if self.live:
+            if last or now - self.last >= REDRAW:
+                self.last, self.drawn = now, True
+                sys.stderr.write(f"\r{text}")
+                sys.stderr.flush()
+        elif now - self.last >= EVERY_LINE or (last and self.drawn):
+            self.last, self.drawn = now, True
+            sys.stderr.write(f"{text}\n")
+            sys.stderr.flush()
+
+    def end(self) -> None:
+        """Finish the terminal's line (what follows starts on a line of its own); again does nothing."""
+        if self.live and self.drawn:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+        self.drawn = False
+
+
+def bar_text(label: str, done: int, total: int, rest: str) -> str:
+    """`label [####    ] done/total rest`."""
+    width = 24
+    filled = min(width, int(width * done / total)) if total else width
+    return f"{label} [{'#' * filled}{' ' * (width - filled)}] {done}/{total} {rest}"
+
+
+def progress(items: Iterable[T], total: int, label: str, unit: str = "demos") -> Iterator[T]:
+    """Yield `items`, showing `label [####    ] i/total unit, rate/s` as they pass (`Bar`)."""
+    bar = Bar()
+    start = time.perf_counter()
+    done = 0
+    try:
+        for item in items:
+            yield item
+            done += 1
+            elapsed = time.perf_counter() - start
+            rate = done / elapsed if elapsed > 0 else 0.0
+            bar.show(bar_text(label, done, total, f"{unit}, {rate:.1f}/s"), last=done == total)
+    finally:  # an error's message, too, starts on a line of its own
+        bar.end()
 
 
 @contextlib.contextmanager

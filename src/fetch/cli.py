@@ -1,4 +1,4 @@
-"""`gym-fetch`: collect demonstrations, inspect, replay and convert datasets."""
+"""`gym-fetch`: collect demonstrations, generate more, train and evaluate policies; inspect and convert datasets."""
 
 from __future__ import annotations
 

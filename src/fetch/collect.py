@@ -1,9 +1,10 @@
-"""`gym-fetch collect` (and `python -m fetch.collect`, and the seed's `collect_fetch_demo.py`): its flags,
+"""`gym-fetch collect` (and `python -m fetch.collect`, and the original script `collect_fetch_demo.py`): its flags,
 every device's own among them, and the run."""
 
 from __future__ import annotations
 
 import argparse
+import pathlib
 import sys
 from collections.abc import Sequence
 
@@ -11,7 +12,7 @@ from fetch.cli import run_stoppable
 
 
 def add_collect_arguments(p: argparse.ArgumentParser) -> None:
-    """The collector's flags: the seed script's (same names and meaning) plus ours."""
+    """The collector's flags: the original script's (same names and meaning) plus ours."""
     from fetch.dataset.formats import FORMATS
     from fetch.learn import device as _  # noqa: F401  (registers --device policy, from the layer above teleop)
     from fetch.learn import takeover as _takeover  # noqa: F401  (registers --device takeover)
@@ -45,13 +46,14 @@ def add_collect_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--keep-failures", action="store_true",
                    help="also save failed attempts (in mask/failed; default off)")
     p.add_argument("--render", default="auto", choices=RENDER_CHOICES,
-                   help="auto (default): a window when there is a display; rgb_array (the seed's) is headless "
-                        "like none")
+                   help="auto (default): a window when there is a display; rgb_array (collect_fetch_demo.py's name) "
+                        "is headless like none")
     p.add_argument("--device", default="gamepad", choices=DEVICE_NAMES,
                    help="what drives the arm (default gamepad): " + "; ".join(f"{k.name}: {k.summary}" for k in KINDS)
                         + ". Without a display or a pad: expert or scripted")
     p.add_argument("--format", default=FORMATS[0], choices=FORMATS,
-                   help="hdf5 (default): robomimic's layout, replayable; npz: the seed's per-demo files")
+                   help="hdf5 (default): robomimic's layout, replayable; npz: one file per demo, as "
+                        "collect_fetch_demo.py wrote them")
     p.add_argument("--reward-type", default="sparse", choices=["sparse", "dense"],
                    help="sparse (default): -1 until the goal is reached, then 0; dense: minus the distance [m]")
     p.add_argument("--cameras", default="",
@@ -72,7 +74,18 @@ def run_collect(args: argparse.Namespace) -> int:
     session = build.session_from_args(args)
     summary = session.run()
     print(summary.describe(), flush=True)
+    if summary.exit_status == 0 and summary.total_saved:
+        print(next_steps(args.out, args.format), flush=True)
     return summary.exit_status
+
+
+def next_steps(out: str, dataset_format: str) -> str:
+    """What to do with demos just collected into `out`: look at them, and learn from them."""
+    if dataset_format != "hdf5":  # the npz files: what reads them
+        return f"next: check them with `gym-fetch info {out}` and `gym-fetch replay {out} --check`"
+    name = pathlib.PurePath(out).name or "demos"
+    return (f"next: watch them with `gym-fetch view {out} --out report/{name}/`; train a policy on them with "
+            f"`gym-fetch train {out} --out runs/{name}` (or first make many more from them: `gym-fetch generate`)")
 
 
 def add_collect_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -82,8 +95,8 @@ def add_collect_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore
 
 
 def collect_main(argv: Sequence[str] | None = None, prog: str = "collect_fetch_demo.py") -> int:
-    """`gym-fetch collect` under another name (the seed's script): its usage and errors say `prog`."""
-    p = argparse.ArgumentParser(prog=prog, description="Record demonstrations: the seed's collector, "
+    """`gym-fetch collect` under another name (the original script): its usage and errors say `prog`."""
+    p = argparse.ArgumentParser(prog=prog, description="Record demonstrations: the original collection script, "
                                 "every flag with its meaning; the same as `gym-fetch collect`.")
     add_collect_arguments(p)
     p.set_defaults(run=run_collect, command="collect")

@@ -152,7 +152,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         super().reset(seed=seed)
-        if self.looks_mode == "random":  # from a child of the seed's sequence: the task's draws stay
+        if self.looks_mode == "random":  # from a child of the reset seed's sequence: the task's draws stay
             self.looks = Looks.draw(self.model, self.np_random.spawn(1)[0])
         return self._begin(lambda: self.task.reset(self.model, self.data, self.np_random, self._start))
 

@@ -1,5 +1,5 @@
-"""Exports of a dataset: a Minari dataset (`minari.load_dataset` opens it), the seed's per-demo npz files and
-a LeRobotDataset (`lerobot_writer.py`). The `export` subcommand and its registry of formats: `exporters.py`."""
+"""Exports of a dataset: a Minari dataset (`minari.load_dataset` opens it), collect_fetch_demo.py's per-demo
+npz files and a LeRobotDataset (`lerobot_writer.py`). The `export` subcommand and its formats: `exporters.py`."""
 
 from __future__ import annotations
 
@@ -312,7 +312,7 @@ def _episode(arrays: dict[str, np.ndarray], attrs: dict[str, Any], env: Any, cor
 def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *, demos: str = "successful",
                force: bool = False) -> Exported:
     """Write the selected demos as the seed collector's files in `out_dir`: `<env>_ep<NNNN>_<t>.npz`,
-    numbered from 0 in the file's order, `t` the demo's end [s, Unix time], with the seed's keys.
+    numbered from 0 in the file's order, `t` the demo's end [s, Unix time], with collect_fetch_demo.py's keys.
     The files are written into a directory beside `out_dir` that replaces it whole once every file
     is there (`dirs.replacing_dir`): a kill at any instant leaves the old directory or the new one,
     never some of the files. A directory that is not empty is an error unless

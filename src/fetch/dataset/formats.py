@@ -1,5 +1,5 @@
 """The formats a collector records in, chosen here behind one interface (`BackgroundWriter`):
-hdf5 (robomimic's layout, crash-safe, replayable) and npz (the seed's per-demo files)."""
+hdf5 (robomimic's layout, crash-safe, replayable) and npz (one file per demo, collect_fetch_demo.py's format)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ def check_format(format: str, cameras: tuple[str, ...] = ()) -> None:
     if format not in FORMATS:
         raise UnknownNameError("format", format, FORMATS)
     if cameras and format != "hdf5":
-        raise FetchError("--cameras needs --format hdf5 (the seed's npz files hold no images)")
+        raise FetchError("--cameras needs --format hdf5 (the npz files hold no images)")
 
 
 def recorded_layout(env: gym.Env, cameras: tuple[str, ...] = (), image_size: int = 0,

@@ -1,4 +1,4 @@
-"""The seed's per-demo `.npz` files (`--format npz`), with its keys, for scripts that read them."""
+"""collect_fetch_demo.py's per-demo `.npz` files (`--format npz`), with its keys, for scripts that read them."""
 
 from __future__ import annotations
 
@@ -25,12 +25,12 @@ _NUMBER = re.compile(r"_ep(\d+)_")
 
 
 def file_stem(env_id: str, index: int, unix_time: float) -> str:
-    """The seed's name of its `index`-th saved demo, without `.npz`: `<env>_ep<NNNN>_<unix time [s]>`."""
+    """collect_fetch_demo.py's name of its `index`-th saved demo, without `.npz`: `<env>_ep<NNNN>_<unix time [s]>`."""
     return f"{env_id}_ep{index:04d}_{int(unix_time)}"
 
 
 def seed_metadata(base: dict[str, Any], demo: Demo, index: int, saved: float) -> dict[str, Any]:
-    """A file's `metadata_json`: the session's `base`, the demo's attributes, and the seed's per-demo keys
+    """A file's `metadata_json`: the session's `base`, the demo's attributes, and collect_fetch_demo.py's per-demo keys
     (`episode_index`, `saved_utc` from `saved` [s, Unix time], `successful`)."""
     return {**base, **{k: _jsonable(v) for k, v in demo.attrs.items()}, "episode_index": index,
             "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(saved)),
@@ -45,7 +45,7 @@ def seed_file(demo: Demo, metadata: dict[str, Any]) -> bytes:
 
 
 def seed_arrays(demo: Demo, metadata: dict[str, Any]) -> dict[str, Any]:
-    """The seed's npz keys: `action`, `reward`, `terminated`, `truncated`, `obs__<key>` (T+1 rows,
+    """collect_fetch_demo.py's npz keys: `action`, `reward`, `terminated`, `truncated`, `obs__<key>` (T+1 rows,
     the reset's observation first), `metadata_json`, `info_json`; plus `states` (T+1 rows) and
     `expert_action`: what the device meant at each step, the expert's clean action where `action` is
     its DART-perturbed one (what to learn; `action` replays); a demo a person corrected adds
@@ -102,7 +102,7 @@ def _jsonable(value: Any) -> Any:
 
 
 
-# -- reading: `gym-fetch info` and `replay --check` on a directory of the seed's files --------------
+# -- reading: `gym-fetch info` and `replay --check` on a directory of collect_fetch_demo.py's files --------------
 
 
 @dataclasses.dataclass(frozen=True)

@@ -134,7 +134,7 @@ class NpzRecording:
         self.demos = {d.path.stem: d for d in chosen}
         self.names = list(self.demos)
         self.env_id = str(chosen[0].metadata["env_id"])
-        self.env_kwargs: dict[str, Any] = {}  # the seed's files record none
+        self.env_kwargs: dict[str, Any] = {}  # collect_fetch_demo.py's files record none
 
     def summary(self) -> list[str]:
         demos = self.all
@@ -142,7 +142,8 @@ class NpzRecording:
         devices = collections.Counter(str(d.metadata.get("device", "?")) for d in demos)
         successful = sum(bool(d.metadata.get("successful", d.metadata.get("success", False))) for d in demos)
         seeds = ", ".join(str(d.metadata["seed"]) for d in demos[:20])
-        return [f"{self.path} (npz: the seed's per-demo files)", f"  env         {', '.join(self._envs())}",
+        return [f"{self.path} (npz: one file per demo, collect_fetch_demo.py's format)",
+                f"  env         {', '.join(self._envs())}",
                 f"  demos       {len(demos)} ({successful} successful), {sum(lengths)} steps; length min "
                 f"{min(lengths)} mean {sum(lengths) / len(lengths):.1f} max {max(lengths)}",
                 "  devices     " + ", ".join(f"{k} {v}" for k, v in sorted(devices.items())),
@@ -174,7 +175,7 @@ class NpzRecording:
         return gym.make(self.env_id).unwrapped
 
     def note(self, env: Any) -> str | None:
-        return None  # the seed's files record no model hash
+        return None  # collect_fetch_demo.py's files record no model hash
 
     def check(self, name: str, env: Any) -> ReplayCheck:
         return npz.check_npz(self.demos[name], env)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import pathlib
 from typing import Any
 
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE
@@ -93,6 +94,9 @@ def run_generate(args: argparse.Namespace) -> int:
                             looks=args.looks)
     summary = generate(config)
     print(summary.describe())
+    if not summary.gave_up and summary.total:
+        name = pathlib.PurePath(args.out).name or "generated"
+        print(f"next: train a policy on them with `gym-fetch train {args.out} --out runs/{name}`")
     return 1 if summary.gave_up else 0
 
 

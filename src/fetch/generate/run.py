@@ -18,6 +18,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from fetch._progress import Bar, bar_text
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE, check_cameras
 from fetch.dataset import schema
 from fetch.dataset.dirs import require_apart
@@ -203,7 +204,7 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
                                                    config.image_quality))
         summary.workers = backend.workers
         started = time.perf_counter()
-        bar = _Bar(config.demos, have)
+        bar = _Bar(config.demos)
         previous = last
         made = 0 if last is None else None  # attempts since the previous demo (None: unknown, across a resume)
         try:
@@ -283,24 +284,16 @@ def low_yield(summary: Summary, wanted: int, limit: int, seconds: float) -> str 
 
 
 class _Bar:
-    """One line on stderr, redrawn (a terminal only): demos, attempts, running success rate, rate."""
+    """Generation's progress line (`fetch._progress.Bar`): demos, attempts, running success rate, rate."""
 
-    def __init__(self, target: int, have: int) -> None:
-        self.target, self.have = target, have
-        self.live = sys.stderr.isatty()
-        self.last = 0.0
+    def __init__(self, target: int) -> None:
+        self.target = target
+        self.bar = Bar()
 
     def show(self, s: Summary, elapsed: float) -> None:
-        if not self.live or (elapsed - self.last < 0.2 and s.total < self.target):
-            return
-        self.last = elapsed
-        width = 24
-        filled = int(width * s.total / self.target)
         rate = 60 * s.saved / elapsed if elapsed > 0 else 0.0
-        sys.stderr.write(f"\rgenerate [{'#' * filled}{' ' * (width - filled)}] {s.total}/{self.target} demos, "
-                         f"{s.attempts} attempts, success {100 * s.success_rate:.0f}%, {rate:.0f}/min ")
-        sys.stderr.flush()
+        self.bar.show(bar_text("generate", s.total, self.target, f"demos, {s.attempts} attempts, success "
+                               f"{100 * s.success_rate:.0f}%, {rate:.0f}/min "), last=s.total >= self.target)
 
     def end(self) -> None:
-        if self.live:
-            sys.stderr.write("\n")
+        self.bar.end()

@@ -7,6 +7,7 @@ import argparse
 import sys
 
 from fetch._gl import has_display
+from fetch.errors import FetchError
 from fetch.teleop.devices import Device, DeviceContext
 from fetch.teleop.registry import device_kind
 from fetch.teleop.session import CollectConfig, Display, Session, make_env
@@ -29,6 +30,32 @@ def wants_window(config: CollectConfig) -> bool:
     return config.render == "auto" and has_display() and config.human
 
 
+NO_WINDOW = ("{what} reads keys typed into the collection window, and there is no display to open it on. What works: "
+             "a desktop session (or ssh -X); a virtual display, for keys sent by a program (xvfb-run -a gym-fetch "
+             "collect ...); or a device that needs no window: --device expert (the task's scripted expert), "
+             "--device scripted (events from --scripted-json) or --device gamepad (a pad; --render none)")
+
+
+def check_window(config: CollectConfig, args: argparse.Namespace) -> None:
+    """FetchError, before anything opens, when what a person drives with reads the window (the keyboard) and
+    no window will open: one message saying what works."""
+    from fetch.teleop.viewer import window_possible
+
+    kind = device_kind(config.device)
+    flag = f"--device {kind.name}"
+    if kind.legend_from:  # a person drives through another device (takeover): that one may read the window
+        through = kind.legend_from
+        kind = device_kind(getattr(args, through))
+        flag = f"--{through.replace('_', '-')} {kind.name}"
+    if not kind.reads_window:
+        return
+    if not window_possible():
+        raise FetchError(NO_WINDOW.format(what=flag))
+    if not wants_window(config):
+        raise FetchError(f"{flag} reads keys typed into the collection window, which --render {config.render} does "
+                         "not open: leave --render out (auto opens it on a display) or use --render human")
+
+
 def make_device(config: CollectConfig, args: argparse.Namespace, env: object, viewer: Display | None) -> Device:
     yaw = getattr(viewer, "yaw", None) if getattr(args, "frame", "camera") == "camera" else None
     return device_kind(config.device).build(DeviceContext(env=env, args=args, viewer=viewer, yaw=yaw))
@@ -39,6 +66,7 @@ def session_from_args(args: argparse.Namespace) -> Session:
     # The devices read the flags: give them what the config decided for those left unset.
     args = argparse.Namespace(**{**vars(args), "stop_on_success": config.stop_on_success,
                                  "max_steps": config.max_steps})
+    check_window(config, args)
     env = make_env(config)
     viewer: Display | None = None
     if wants_window(config):

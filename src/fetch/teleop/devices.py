@@ -184,13 +184,16 @@ class DeviceKind:
     """Adds the device's own flags to an argparse parser or group (None: it has none)."""
     build: Callable[[DeviceContext], Device]
     aliases: tuple[str, ...] = ()
-    """Other `--device` values meaning this one (the seed's "xbox" is the gamepad)."""
+    """Other `--device` values meaning this one ("xbox", collect_fetch_demo.py's name, is the gamepad)."""
     waits_for_input: bool = True
     """Where a person drives: an attempt's clock starts at their first input (False: something else drives
     from the start, as a policy the person corrects)."""
     legend_from: str = ""
     """The argument (e.g. "takeover_with") naming another device whose legend the window shows after this
     one's: a device that a person drives through another."""
+    reads_window: bool = False
+    """It reads its input from the collection window (keys typed into it): without a window it cannot run, and
+    the collector says so, in one line naming what works, before anything opens."""
     holds_past_success: bool = False
     """Unless `--stop-on-success` is given, an attempt runs on to the task's horizon (the default
     `--max-steps`) instead of ending once success has held: a demo that shows holding the goal
@@ -214,6 +217,8 @@ class DeviceKind:
             raise TypeError(f"{where}: waits_for_input must be True or False, got {self.waits_for_input!r}")
         if not isinstance(self.legend_from, str):
             raise TypeError(f"{where}: legend_from must be an argument's name or '', got {self.legend_from!r}")
+        if not isinstance(self.reads_window, bool):
+            raise TypeError(f"{where}: reads_window must be True or False, got {self.reads_window!r}")
         if not isinstance(self.holds_past_success, bool):
             raise TypeError(f"{where}: holds_past_success must be True or False, got {self.holds_past_success!r}")
         if not callable(self.build):

@@ -75,13 +75,14 @@ class KeyboardDevice:
 
 def build_keyboard(context: DeviceContext) -> KeyboardDevice:
     if context.viewer is None:
-        raise FetchError("--device keyboard reads keys in the viewer window; use --render human "
-                         "(or auto, with a display)")
+        raise FetchError("--device keyboard reads keys typed into the collection window, and none is open: "
+                         "collect with the window (--render auto or human, on a display or under xvfb-run), or "
+                         "with a device that needs none: --device expert, scripted or gamepad")
     return KeyboardDevice(context.viewer, context.yaw)
 
 
 KIND = DeviceKind(
-    name="keyboard", human=True, add_arguments=None, build=build_keyboard,
+    name="keyboard", human=True, add_arguments=None, build=build_keyboard, reads_window=True,
     summary="keys in the viewer window (needs a display)",
     legend=("arrows / WASD: move x/y", "R/F: up/down", "SPACE: open/close gripper", "SHIFT hold: precision",
             "Z: rewind 1 s (hold: more)", "C: camera", "F11: full screen", "ENTER: keep attempt",

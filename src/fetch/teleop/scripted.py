@@ -1,4 +1,4 @@
-"""The scripted device: events from a JSON file, one per control tick (the seed's test device)."""
+"""The scripted device: events from a JSON file, one per control tick (collect_fetch_demo.py's test device)."""
 
 from __future__ import annotations
 
@@ -14,14 +14,14 @@ from fetch.errors import FetchError
 from fetch.teleop.devices import Command, DeviceContext, DeviceKind, idle
 
 BUILTIN_IDLE_STEPS = 10
-"""The seed's built-in pattern (no --scripted-json): this many idle steps, then discard the attempt."""
+"""collect_fetch_demo.py's built-in pattern (no --scripted-json): this many idle steps, then discard the attempt."""
 
 SCRIPT_FORMAT = f"""\
 A JSON list of events (numbered from 0), one per control tick. {{"action": [dx, dy, dz, gripper]}}
 steps the arm (each number in [-1, 1], clipped; dx, dy, dz move the hand, gripper > 0 opens it and
 < 0 closes it; a missing "action" is [0, 0, 0, 0]). Flags, false when missing: "finish": true ends
 the attempt after that step and keeps it if it succeeded (with --keep-failures, also if not);
-"discard": true (or the seed's "reset": true) ends the attempt and drops it, without stepping;
+"discard": true (or "reset": true, its name in collect_fetch_demo.py) ends the attempt and drops it, without stepping;
 "quit": true ends the session, without stepping (the attempt in progress is kept only if it had
 already succeeded). One list serves the whole session: it does not restart at each attempt, so an
 attempt that ends by success, --max-steps or a discard leaves the events after it to the next
@@ -111,7 +111,7 @@ def builtin_notice(keep_failures: bool, max_steps: int) -> str:
 
 
 def default_script() -> list[Command]:
-    """The seed's built-in pattern: `BUILTIN_IDLE_STEPS` idle ticks, then end and discard the attempt."""
+    """collect_fetch_demo.py's built-in pattern: `BUILTIN_IDLE_STEPS` idle ticks, then end and discard the attempt."""
     return [Command(idle()) for _ in range(BUILTIN_IDLE_STEPS)] + [Command(idle(), discard=True)]
 
 

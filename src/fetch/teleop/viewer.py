@@ -24,7 +24,7 @@ from fetch.teleop.frames import FrameThread
 from fetch.teleop.scenery import Scenery, camera_yaw
 from fetch.teleop.session import HudState
 
-__all__ = ["FrameThread", "Viewer", "camera_yaw"]
+__all__ = ["FrameThread", "Viewer", "camera_yaw", "window_possible"]
 
 SIZE = (640, 480)
 """[px] the window's size when it opens."""
@@ -32,6 +32,11 @@ INSET = (0.28, 160)
 """The wrist camera's inset: this fraction of the window's width, and at least this many pixels (4:3)."""
 MARGIN, LINE = 8, 22
 """[px] the HUD's and legend's margin and line height."""
+
+
+def window_possible() -> bool:
+    """Whether a window can open: a display, or SDL's windowless drivers (dummy, offscreen: tests)."""
+    return has_display() or os.environ.get("SDL_VIDEODRIVER") in ("dummy", "offscreen")
 
 
 class Viewer:
@@ -47,7 +52,7 @@ class Viewer:
 
     def __init__(self, env: Any, legend: tuple[str, ...] = (), size: tuple[int, int] = SIZE,
                  camera: str | None = None, inset: str | None = "wrist", shadows: bool = True) -> None:
-        if not has_display() and os.environ.get("SDL_VIDEODRIVER") not in ("dummy", "offscreen"):
+        if not window_possible():
             raise FetchError("no display for the viewer window; use --render none (headless), or run under "
                              "a desktop session or `xvfb-run`")
         check_gl()

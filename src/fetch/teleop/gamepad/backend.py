@@ -236,15 +236,16 @@ def gamepad_from_args(args: argparse.Namespace, yaw: Callable[[], float] | None 
 
 
 def add_collect_arguments(p: Any) -> None:
-    """The collector's gamepad flags: the seed's, and which way the stick steers."""
+    """The collector's gamepad flags: collect_fetch_demo.py's, and which way the stick steers."""
     add_gamepad_arguments(p)
     p.add_argument("--frame", default="camera", choices=["camera", "world"],
-                   help="camera (default): stick 'up' moves away from the viewer; world: the seed's fixed mapping")
+                   help="camera (default): stick 'up' moves away from the viewer; world: stick up = the world's +y "
+                        "whatever the view (collect_fetch_demo.py's mapping)")
 
 
 KIND = DeviceKind(
     name="gamepad", human=True, aliases=("xbox",), add_arguments=add_collect_arguments,
-    summary="an Xbox (or any SDL) game pad; xbox is the seed's name for it",
+    summary="an Xbox (or any SDL) game pad; xbox is another name for it",
     build=lambda context: gamepad_from_args(context.args, yaw=context.yaw),
     legend=("left stick: move x/y", "RT/LT: up/down", "X: open/close gripper", "RB hold: precision",
             "BACK: rewind 1 s (hold: more)", "LB: camera", "F11: full screen", "B: keep attempt", "Y: discard",

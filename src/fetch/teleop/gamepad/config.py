@@ -60,13 +60,13 @@ def _check_binding(field: str, value: object, names: Mapping[str, int]) -> None:
 @dataclasses.dataclass(frozen=True)
 class GamepadConfig:
     """How a pad drives the hand. Bindings: None = the SDL GameController layout (`STICK_AXES`, `CONTROLS`);
-    an int = that raw joystick index (the seed's way); a str = another SDL GameController name."""
+    an int = that raw joystick index (collect_fetch_demo.py's way); a str = another SDL GameController name."""
 
     deadzone: float = 0.10
     """Radial dead zone of the left stick, as a fraction of full tilt; the output is rescaled (continuous)."""
     pos_scale: float = 1.0
     invert_y: bool = True
-    """SDL's y axis points down; True negates it, so pushing the stick up gives +y (the seed's default)."""
+    """SDL's y axis points down; True negates it, so pushing the stick up gives +y (collect_fetch_demo.py's default)."""
     gripper_open: float = 1.0
     gripper_close: float = -1.0
     precision_scale: float = 0.3
@@ -176,8 +176,8 @@ class GamepadConfig:
 
 
 def config_from_args(args: argparse.Namespace) -> GamepadConfig:
-    """The config of the seed's flags, on top of `args.profile` if given; a flag left at its default value
-    does not override the profile."""
+    """The config of collect_fetch_demo.py's pad flags, on top of `args.profile` if given; a flag left at its default
+    value does not override the profile."""
     profile = getattr(args, "profile", None)
     base = GamepadConfig.from_profile(profile) if profile else GamepadConfig()
     defaults = GamepadConfig()
@@ -205,7 +205,7 @@ def legend(config: GamepadConfig) -> list[str]:
 
 
 def add_gamepad_arguments(p: argparse.ArgumentParser | Any) -> None:
-    """The seed's gamepad flags (same names and meaning) plus --profile and --precision-scale."""
+    """collect_fetch_demo.py's gamepad flags (same names and meaning) plus --profile and --precision-scale."""
     p.add_argument("--profile", default=None,
                    help="a mapping profile written by `gym-fetch gamepad --calibrate` (default: none)")
     p.add_argument("--deadzone", type=float, default=0.10,
@@ -215,7 +215,7 @@ def add_gamepad_arguments(p: argparse.ArgumentParser | Any) -> None:
     p.add_argument("--precision-scale", type=float, default=0.3,
                    help="motion scale while precision (RB) is held (default 0.3)")
     p.add_argument("--invert-y", dest="invert_y", action="store_true", default=True,
-                   help="stick up moves forward (SDL reports up as negative; default on, the seed's)")
+                   help="stick up moves forward (SDL reports up as negative; default on, as in collect_fetch_demo.py)")
     p.add_argument("--no-invert-y", dest="invert_y", action="store_false", help="stick up moves backward")
     p.add_argument("--gripper-open", type=float, default=1.0, help="a[3] sent to open the fingers (default 1.0)")
     p.add_argument("--gripper-close", type=float, default=-1.0,

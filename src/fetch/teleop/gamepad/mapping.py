@@ -34,8 +34,8 @@ def radial_deadzone(x: float, y: float, deadzone: float) -> tuple[float, float]:
 
 class _Trigger:
     """A raw-index trigger to [0, 1]. Full-range triggers rest at -1 but many drivers report 0 until the first
-    touch, which the seed's rule read as half pressed (and its rule jumped at 0); here an untouched or
-    not-yet-known trigger reads 0 and a full-range one maps linearly."""
+    touch, which collect_fetch_demo.py's first rule read as half pressed (and its rule jumped at 0); here an untouched
+    or not-yet-known trigger reads 0 and a full-range one maps linearly."""
 
     def __init__(self, mode: str) -> None:
         self.mode = mode
