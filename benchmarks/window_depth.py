@@ -1,7 +1,7 @@
 """How well a person can steer in the collection window: what its picture shows, measured from the picture.
 
     python -m benchmarks.window_depth [--envs PickPlace-v2,Bin-pick-v2,Drawer-open-v2] [--states 300]
-    python -m benchmarks.window_depth --candidates 40    # other places for the operator's camera
+    python -m benchmarks.window_depth --candidates 40    # other places for the operator's camera, and the goal
 
 First, what the window's frame costs to render (640 x 480, PickPlace-v2, the default view), with and
 without multisampling, shadows and the sky: on a software renderer this decides the frames a person
@@ -68,6 +68,7 @@ class Views:
         m = self.scenery.model
         self.fingers = np.array([g for g in range(m.ngeom) if "finger" in m.body(m.geom_bodyid[g]).name])
         self.key = key_geoms(m)
+        self.goal = np.array([m.geom("goal").id])
 
     def sync(self) -> None:
         self.scenery.sync(self.env.data)
@@ -102,6 +103,22 @@ class Views:
         alone = np.isin(self._ids(r.render()), geoms).sum()
         r.disable_segmentation_rendering()
         return int(seen), int(alone)
+
+    def hidden_by(self, camera: str, geoms: np.ndarray, by: np.ndarray) -> float:
+        """The share of the pixels `geoms` would cover with nothing in front that `by` hides, from `camera`
+        (1 when they are out of the picture)."""
+        r, data = self.dressed, self.scenery.data
+        r.enable_segmentation_rendering()
+        r.update_scene(data, camera=camera)
+        ids = self._ids(r.render())
+        r.update_scene(data, camera=camera)
+        for i in range(r.scene.ngeom):
+            geom = r.scene.geoms[i]
+            if not (geom.objtype == mujoco.mjtObj.mjOBJ_GEOM and geom.objid in geoms):
+                geom.pos[:] = (1e3, 1e3, 1e3)
+        alone = np.isin(self._ids(r.render()), geoms)
+        r.disable_segmentation_rendering()
+        return float(np.isin(ids[alone], by).mean()) if alone.any() else 1.0
 
     @staticmethod
     def _ids(seg: np.ndarray) -> np.ndarray:
@@ -242,12 +259,14 @@ CANDIDATES = {
     "further forward": ((1.15, 1.65, 1.4), (1.3, 0.75, 0.42)),
     "beside, high": ((1.35, 1.7, 1.3), (1.3, 0.75, 0.42)),
     "further back, high": ((0.75, 1.45, 1.7), (1.3, 0.75, 0.42)),
+    "before": ((0.9, 1.6, 1.35), (1.3, 0.75, 0.42)),
 }
 """Other places for the `operator` camera, (position, target) [m], that `--candidates` compares with it."""
 
 
 def candidates(env_ids: list[str], states: int) -> None:
-    """The share of the fingers and key object seen from each of `CANDIDATES` and the window's viewpoints."""
+    """The share of the fingers, the key object and the goal marker seen from each of `CANDIDATES` and the
+    window's viewpoints."""
     from fetch.teleop import scenery
 
     scenery.VIEWPOINTS.update(CANDIDATES)  # this process only: every Scenery made now has them as cameras
@@ -257,13 +276,44 @@ def candidates(env_ids: list[str], states: int) -> None:
         env = gym.make(env_id, max_episode_steps=10_000)
         views = Views(env)
         rng = np.random.default_rng(5)
-        seen = {c: np.zeros(4) for c in names}
+        seen = {c: np.zeros(6) for c in names}
         for i in range(states):
             if place(env, views, rng, 900_000 + i, float(rng.uniform(0.01, 0.15))):
                 for c in names:
-                    seen[c] += [*views.unhidden(c, views.fingers), *views.unhidden(c, views.key)]
-        print(f"| {env_id} (fingers / key object seen) | "
-              + " | ".join(f"{100 * v[0] / v[1]:.0f} / {100 * v[2] / v[3]:.0f} %" for v in seen.values()) + " |")
+                    seen[c] += [*views.unhidden(c, views.fingers), *views.unhidden(c, views.key),
+                                *views.unhidden(c, views.goal)]
+        print(f"| {env_id} (fingers / key object / goal seen) | "
+              + " | ".join(f"{100 * v[0] / v[1]:.0f} / {100 * v[2] / v[3]:.0f} / {100 * v[4] / max(v[5], 1):.0f} %"
+                           for v in seen.values()) + " |")
+        env.close()
+    print(f"\n| task (hand anywhere over the table, {states} states): goal over half hidden by the arm | "
+          + " | ".join(names) + " |\n|---|" + "---|" * len(names))
+    for env_id in env_ids:
+        env = gym.make(env_id, max_episode_steps=10_000)
+        views = Views(env)
+        m = views.scenery.model
+        arm = np.array([g for g in range(m.ngeom) if m.body(m.geom_bodyid[g]).name.startswith("robot0:")
+                        and not any(part in m.body(m.geom_bodyid[g]).name for part in ("gripper", "finger"))])
+        rng = np.random.default_rng(6)
+        hidden = dict.fromkeys(names, 0)
+        for i in range(states):
+            anywhere(env, views, rng, 800_000 + i)
+            for c in names:
+                hidden[c] += views.hidden_by(c, views.goal, arm) > 0.5
+        print(f"| {env_id} | " + " | ".join(f"{100 * n / states:.1f} %" for n in hidden.values()) + " |")
+        env.close()
+
+
+def anywhere(env: gym.Env, views: Views, rng: np.random.Generator, seed: int) -> None:
+    """Reset with `seed` and move the hand to a random point over the table, 5-25 cm up (where a person
+    steering it may be)."""
+    base = env.unwrapped
+    env.reset(seed=seed)
+    grip = base.model.site("robot0:grip").id
+    target = np.array([rng.uniform(1.05, 1.55), rng.uniform(0.4, 1.1), rng.uniform(0.45, 0.65)])
+    for _ in range(30):
+        env.step(np.r_[np.clip((target - base.data.site_xpos[grip]) / 0.05, -1, 1), 1.0])
+    views.sync()
 
 
 def main() -> None:

@@ -21,14 +21,15 @@ from fetch.rendering import CAMERAS, GOAL_GROUP, camera_names
 from fetch.scene import look_at
 
 VIEWPOINTS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
-    "operator": ((0.9, 1.6, 1.35), (1.3, 0.75, 0.42)),
+    "operator": ((0.9, 1.8, 1.2), (1.3, 0.8, 0.32)),
     "left": ((1.05, 1.55, 0.8), (1.2, 0.75, 0.45)),
 }
-"""[m] the window's own cameras, (position, what they look at): `operator`, behind the table's near edge
+"""[m] the window's own cameras, (position, what they look at): `operator`, beyond the table's near edge
 on the robot's left and above it (the arm reaches away from it, so it hides neither the hand nor the
-table; a view from behind the robot looks through the robot's head and arm), and `left`, lower, from
-the same side, level with a drawer's handle so the hook behind it shows. A task names its default
-(`fetch.tasks.Task.view`); `docs/window.md` has the measurements."""
+table, and from this low the wrist rarely hides a goal beyond the hand; a view from behind the robot
+looks through the robot's head and arm), and `left`, lower, from the same side, level with a drawer's
+handle so the hook behind it shows. A task names its default (`fetch.tasks.Task.view`);
+`docs/window.md` has the measurements."""
 
 SKY = ((0.55, 0.70, 0.88), (0.92, 0.94, 0.96))
 """The sky's gradient, top to horizon (RGB)."""
@@ -201,7 +202,7 @@ class Scenery:
 
 
 def camera_yaw(model: mujoco.MjModel, data: mujoco.MjData, camera: str) -> float:
-    """[rad] The rotation from the seed's fixed stick mapping (stick up = world +y) to the camera's:
+    """[rad] The rotation from the fixed stick mapping (`--frame world`: stick up = world +y) to the camera's:
     stick up then moves the hand away from the viewer, along the camera's view on the table."""
     cam = model.camera(camera).id
     forward = -data.cam_xmat[cam].reshape(3, 3)[:, 2]  # a camera looks along its -z axis
