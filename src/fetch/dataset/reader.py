@@ -236,7 +236,7 @@ def plain_value(value: Any) -> Any:
 def open_dataset(path: str | os.PathLike[str], mode: str = "r") -> Dataset:
     """Open a dataset written by this package; DatasetError naming the file if it is not one."""
     p = resolve(path)
-    if p.parent == pathlib.Path(path) and p.is_symlink():  # the index a directory holds is its content
+    if p.name == schema.INDEX_NAME and p.is_symlink():  # a collector's index is its directory's content
         inside(p.parent, p.name, f"{p.parent}: the dataset's index")
     if not p.exists():
         raise DatasetError(f"{p}: no such file")
