@@ -236,6 +236,8 @@ ATTACKS: dict[str, Attack] = {
     "external_storage_mask": Attack(index_mask_external, r"another file"),
     "virtual_dataset": Attack(demo_dataset("actions", virtual), r"virtual dataset"),
     "external_link_in_demo": Attack(demo_dataset("actions", external_link), r"external link"),
+    "soft_link_in_demo": Attack(demo_dataset("actions", lambda g, k, data, v: g.__setitem__(
+        k, h5py.SoftLink("/demo_1/expert_actions"))), r"soft link"),
     # env ids that would make Gymnasium import a module
     "env_this": Attack(env_name("this:Reach-v2"), r"this:Reach-v2"),
     "env_shipped_module": Attack(env_name(shipped_module), MODULE),
@@ -352,9 +354,9 @@ def test_every_array_of_a_demo_is_read_from_its_own_file_only(
     assert "demo_1" in str(refused.value) and "\n" not in str(refused.value)
 
 
-def test_a_merged_file_reading_another_file_is_refused_at_open(reach_demos: pathlib.Path,
-                                                                tmp_path: pathlib.Path) -> None:
-    """A merged file keeps its demos inside: the whole file is checked when it is opened."""
+def test_a_merged_file_s_demo_reading_another_file_is_refused(reach_demos: pathlib.Path,
+                                                               tmp_path: pathlib.Path) -> None:
+    """A merged file keeps its demos inside: each is checked when it is first read, the rest at open."""
     v = victim(tmp_path)
     merged = tmp_path / "m.hdf5"
     shutil.copytree(reach_demos, tmp_path / "a")
@@ -363,7 +365,9 @@ def test_a_merged_file_reading_another_file_is_refused_at_open(reach_demos: path
     with h5py.File(merged, "r+") as f:
         del f["data/demo_3/rewards"]
         external_storage(f["data/demo_3"], "rewards", np.zeros(50), v)
-    with pytest.raises(FetchError, match="demo_3/rewards keeps its data in another file"):
-        open_dataset(merged)
+    with open_dataset(merged) as ds:
+        ds.arrays("demo_2")
+        with pytest.raises(FetchError, match="demo 'demo_3': rewards keeps its data in another file"):
+            ds.arrays("demo_3")
     assert main(["export", str(merged), "--to", "npz", "--out", str(tmp_path / "npz")]) == 2
     assert not (tmp_path / "npz").exists()

@@ -18,7 +18,7 @@ from fetch._confine import inside
 from fetch.dataset import schema
 from fetch.dataset.demo_file import read_demo_group
 from fetch.dataset.durable import BusyError, editing, journal_renames
-from fetch.dataset.sealed import check_sealed
+from fetch.dataset.sealed import check_index, check_sealed
 from fetch.env import recorded_kwargs
 from fetch.errors import DatasetError, FetchError, OutsideError
 from fetch.tasks import ENV_IDS, MAX_STEPS
@@ -80,7 +80,7 @@ class Dataset:
             raise DatasetError(f"{path}: data.attrs['settings'] gives max_steps {reprlib.repr(limit)}, not a whole "
                                f"number of steps from 1 to {MAX_STEPS}")
         self._sealed: set[str] = set()
-        """The demos in files of their own checked to read nothing outside them (`check_sealed`)."""
+        """The demos checked to read nothing outside their files (`check_sealed`), when first read."""
         names = []
         for name in keys:
             try:
@@ -142,9 +142,10 @@ class Dataset:
             raise DatasetError(f"{self.path}: demo {name!r} cannot be read{where}: {one_line(e)}") from e
         if not isinstance(group, h5py.Group):
             raise DatasetError(f"{self.path}: data/{name} is not a group")
-        if name not in self._sealed and group.file.filename != self.file.filename:  # the index's own: checked at open
+        if name not in self._sealed:
+            where = "" if group.file.filename == self.file.filename else f" (its file {group.file.filename})"
             try:
-                check_sealed(group, f"{self.path}: demo {name!r} (its file {group.file.filename})")
+                check_sealed(group, f"{self.path}: demo {name!r}{where}")
             except READ_ERRORS as e:
                 raise DatasetError(f"{self.path}: demo {name!r} cannot be read: {one_line(e)}") from e
             self._sealed.add(name)
@@ -267,7 +268,7 @@ def _checked(p: pathlib.Path, file: h5py.File) -> Dataset:
     if fmt != schema.FORMAT:
         raise DatasetError(f"{p} is not a gym-fetch-v2 dataset (data.attrs['format'] is {fmt!r}, expected "
                            f"{schema.FORMAT!r}); only datasets written by `gym-fetch collect` can be used here")
-    check_sealed(file, str(p), links_in="data")
+    check_index(file, str(p))
     raw = plain_value(data.attrs.get("format_version"))
     if not isinstance(raw, int) or isinstance(raw, bool) or raw < 1:
         raise DatasetError(f"{p}: data.attrs['format_version'] is {raw!r}, not a version number (1 to "
