@@ -312,3 +312,51 @@ def test_a_run_folder_s_links_are_never_written_through_nor_read_out_of(
 
 def _victim_again(root: pathlib.Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in (root / "victim").iterdir()}
+
+
+# -- every case against every tool that opens a run, in this process (a refusal takes milliseconds) -----
+
+RUN_TOOLS: dict[str, list[str]] = {
+    "eval": ["eval", "{run}", "--episodes", "1"],
+    "collect_policy": ["collect", "--env", "Reach-v2", "--device", "policy", "--policy", "{run}", "--episodes", "1",
+                       "--render", "none", "--out", "{t}/demos"],
+    "collect_takeover": ["collect", "--env", "Reach-v2", "--device", "takeover", "--policy", "{run}",
+                         "--takeover-with", "gamepad", "--episodes", "1", "--render", "none", "--out", "{t}/demos"],
+    "train_from": ["train", "{demos}", "--from", "{run}", "--out", "{t}/again", *TRAINING],
+    "train_resume": ["train", "{demos}", "--out", "{run}", *TRAINING],
+}
+"""Each tool that reads a run's checkpoint; a new one joins by one line."""
+
+
+def _tree(root: pathlib.Path) -> dict[str, bytes | None]:
+    return {str(p.relative_to(root)): p.read_bytes() if p.is_file() else None for p in sorted(root.rglob("*"))}
+
+
+@pytest.mark.parametrize("tool", list(RUN_TOOLS))
+@pytest.mark.parametrize("case", list(CASES))
+def test_every_tool_refuses_every_crafted_checkpoint_in_one_line(
+        made: tuple[pathlib.Path, pathlib.Path], tmp_path: pathlib.Path, case: str, tool: str,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Nothing written anywhere, nothing imported, exit 2 and one line naming the checkpoint, within 30 s."""
+    import time
+
+    demos, trained = made
+    run = _crafted(trained, tmp_path / "run", case)
+    argv = [a.format(run=run, demos=demos, t=tmp_path) for a in RUN_TOOLS[tool]]
+    imported, before, given = set(sys.modules), _tree(tmp_path), _tree(demos)
+    capsys.readouterr()
+    start = time.perf_counter()
+    try:
+        code = main(argv)
+    except BaseException as e:  # noqa: BLE001 (any escape is the failure this test is about)
+        pytest.fail(f"gym-fetch {' '.join(argv)} raised {e!r} instead of a one-line error")
+    seconds = time.perf_counter() - start
+    out, err = capsys.readouterr()
+    lines = [line for line in err.strip().splitlines() if not line.startswith("collecting ")]  # collect's banner
+    said = f"exit {code}; stdout {out[-300:]!r}; stderr {err!r}"
+    assert code == 2 and "Traceback" not in out + err, said
+    assert len(lines) == 1 and lines[0].startswith(f"gym-fetch {argv[0]}: error: "), said
+    assert str(run / "checkpoint.pt") in lines[0] and CASES[case][1] in lines[0], said
+    assert _tree(tmp_path) == before and _tree(demos) == given, "a refused run wrote something"
+    assert {"this", "venv.__main__"} & (set(sys.modules) - imported) == set(), said
+    assert seconds < 30, f"{seconds:.0f} s: {said}"

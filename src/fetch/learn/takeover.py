@@ -11,6 +11,7 @@ fingers while the policy drives, so taking over does not open or close them.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -100,12 +101,14 @@ def build_takeover(context: DeviceContext) -> Device:
     run = getattr(context.args, "policy", None)
     if not run:
         raise FetchError("--device takeover needs --policy RUN (a directory written by `gym-fetch train`)")
-    person = device_kind(getattr(context.args, "takeover_with", "gamepad")).build(context)
-    try:
-        return TakeoverDevice(PolicyDevice(context.env, run), person)
-    except BaseException:
-        person.close()
-        raise
+    with contextlib.ExitStack() as undo:  # closes what was opened if a later part fails
+        policy = PolicyDevice(context.env, run)  # first: a run that cannot be used is refused before a pad is sought
+        undo.callback(policy.close)
+        person = device_kind(getattr(context.args, "takeover_with", "gamepad")).build(context)
+        undo.callback(person.close)
+        device = TakeoverDevice(policy, person)
+        undo.pop_all()
+    return device
 
 
 KIND = register(DeviceKind(
