@@ -80,8 +80,7 @@ def dataset_table() -> str:
         rows.append(f"| `data/demo_<i>/{field.path}` | {field.dtype} | {shape} | {optional}{field.doc} |")
     rows.append("| `data/demo_<i>/obs/<camera>_image`, `next_obs/...` | uint8 | (T, H, W, 3) | "
                 "with `--cameras` or after `render-obs`: the camera's image before / after step t; gzip-compressed, "
-                f"{IMAGE_CHUNK} whole frames to an HDF5 chunk (since 2026-11-27; before, h5py's own chunks; "
-                "readers read either) |")
+                f"{IMAGE_CHUNK} whole frames to an HDF5 chunk (older files: h5py's own chunks; readers read either) |")
     rows.append("| `mask/train`, `mask/valid`, `mask/failed` | bytes | (n,) | demo names: a 90/10 split of the "
                 "successful demos (every 10th is valid, or as `split` drew it); kept failures |")
     return "\n".join(rows)
