@@ -37,36 +37,34 @@ def check_index(file: h5py.File, where: str, demos: str = "data") -> None:
     pays for those few. External links directly in `demos` (a collector's links to its demo files) are let
     through, to be checked where they are followed."""
     problems: list[str] = []
-
-    def member(name: bytes, info: Any) -> None:
-        if problems:
-            return
-        text = name.decode(errors="replace")
-        if info.type == h5l.TYPE_SOFT:
-            problems.append(f"{text} is a soft link")
-        elif info.type == h5l.TYPE_HARD and text != demos:
-            found = _links(h5o.open(file.id, name), text) or _datasets(h5o.open(file.id, name), text)
-            if found:
-                problems.append(found)
-        elif info.type not in (h5l.TYPE_HARD, h5l.TYPE_SOFT):
-            problems.append(f"{text} is an external link")
-
-    file.id.links.iterate(member, info=True)
+    members = _members(file.id)  # (a visit is never started inside another's callback: HDF5 errors there
+    for name, kind in members:   # escape h5py's lock as a SystemError)
+        if kind == h5l.TYPE_SOFT:
+            problems.append(f"{name} is a soft link")
+        elif kind not in (h5l.TYPE_HARD, h5l.TYPE_SOFT):
+            problems.append(f"{name} is an external link")
+        elif name != demos:
+            member = h5o.open(file.id, name.encode())
+            problems.append(_links(member, name) or _datasets(member, name) or "")
     data = file.get(demos)
-    if not problems and isinstance(data, h5py.Group):
-        def demo(name: bytes, info: Any) -> None:
-            if not problems and info.type == h5l.TYPE_SOFT:
-                problems.append(f"{demos}/{name.decode(errors='replace')} is a soft link")
-            elif not problems and info.type == h5l.TYPE_HARD:
-                obj = h5o.open(data.id, name)
-                found = _dataset(obj, f"{demos}/{name.decode(errors='replace')}") \
-                    if isinstance(obj, h5d.DatasetID) else None  # not a demo: say why if it reads another file
-                if found:
-                    problems.append(found)
-
-        data.id.links.iterate(demo, info=True)
+    if isinstance(data, h5py.Group):
+        for name, kind in _members(data.id):
+            if kind == h5l.TYPE_SOFT:
+                problems.append(f"{demos}/{name} is a soft link")
+            elif kind == h5l.TYPE_HARD:
+                member = h5o.open(data.id, name.encode())
+                if isinstance(member, h5d.DatasetID):  # not a demo: say why if it reads another file
+                    problems.append(_dataset(member, f"{demos}/{name}") or "")
+    problems = [p for p in problems if p]
     if problems:
         _refuse(where, problems[0])
+
+
+def _members(gid: Any) -> list[tuple[str, int]]:
+    """(name, link type) of each link directly in the group `gid`."""
+    found: list[tuple[str, int]] = []
+    gid.links.iterate(lambda name, info: found.append((name.decode(errors="replace"), info.type)), info=True)
+    return found
 
 
 def _refuse(where: str, problem: str) -> None:
