@@ -280,3 +280,23 @@ def test_an_invalid_dataset_is_refused(reach_demos: pathlib.Path, tmp_path: path
     err = capsys.readouterr().err
     assert "demo_1: actions hold NaN" in err and err.count("\n") == 1, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["demos"]
+
+
+@pytest.mark.parametrize("env_id", list(fetch.ENV_IDS))
+def test_a_camera_export_s_state_is_the_robot_s_own_readings(env_id: str) -> None:
+    """With cameras, `observation.state` holds the robot's readings alone (no object pose: a policy that sees
+    is not handed the answer), the same 10 values on every task; without, the whole observation vector."""
+    import gymnasium as gym
+
+    from fetch.dataset.lerobot import ROBOT_PARTS, features, state_index, state_layout
+
+    env = gym.make(env_id)
+    layout = dict(env.unwrapped.observation_layout)  # type: ignore[attr-defined]
+    width = env.observation_space["observation"].shape[0]  # type: ignore[index]
+    env.close()
+    seeing = features(layout, ["front"], 32, {})["observation.state"]
+    blind = features(layout, [], 32, {})["observation.state"]
+    assert seeing["shape"] == [10] and list(state_layout(layout, ["front"])) == list(ROBOT_PARTS)
+    assert seeing["names"][:3] == ["grip_pos_x", "grip_pos_y", "grip_pos_z"]
+    assert not any(n.startswith(("object", "block", "lid", "drawer", "bin")) for n in seeing["names"]), seeing
+    assert blind["shape"] == [width] and len(state_index(state_layout(layout, []))) == width

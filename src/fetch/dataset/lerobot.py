@@ -42,6 +42,9 @@ IMAGE_STAT_SAMPLES = 100
 VIDEO_CODEC = "libx264"
 VIDEO_OPTIONS = {"crf": "18", "g": "2", "bf": "0"}
 """H.264 (LeRobot's default is AV1), a key frame every 2 frames as LeRobot encodes for random access."""
+IMAGE_QUALITY = "full"
+"""How the camera videos are drawn (`rendering.IMAGE_QUALITIES`): as the viewer shows the scene. LeRobot's env
+(plugins/lerobot_env_fetch) draws its observation images the same way, so a policy sees there what it learnt on."""
 ROBOT_TYPE = "fetch"
 ACTION_NAMES = ("x", "y", "z", "gripper")
 _REPO_ID = re.compile(r"^[A-Za-z0-9][-\w.]*/[-\w.]+$")
@@ -73,6 +76,29 @@ def video_key(camera: str) -> str:
 
 # -- the layout ------------------------------------------------------------------------------------
 
+ROBOT_PARTS = ("grip_pos", "gripper_state", "grip_velp", "gripper_vel")
+"""The robot's own readings, parts of every task's observation layout: all that `observation.state` holds when
+the dataset has camera images. A policy that sees is not handed the objects' poses; the goal stays in
+`observation.environment_state` (the images show its marker too). Without cameras `observation.state` is the
+whole observation vector. The table of both is in docs/lerobot_env.md."""
+
+
+def state_layout(obs_layout: dict[str, slice], cameras: Sequence[str]) -> dict[str, slice]:
+    """The slices of the observation vector that `observation.state` holds, in order: every part for a state
+    policy (no `cameras`), the robot's own readings (`ROBOT_PARTS`) for a camera policy."""
+    if not cameras:
+        return dict(obs_layout)
+    missing = [part for part in ROBOT_PARTS if part not in obs_layout]
+    if missing:
+        raise FetchError(f"the observation has no {', '.join(missing)} (its parts: {', '.join(obs_layout)})")
+    return {part: obs_layout[part] for part in ROBOT_PARTS}
+
+
+def state_index(layout: dict[str, slice]) -> np.ndarray:
+    """The observation vector's indices of `layout`'s slices, side by side (int64)."""
+    return np.concatenate([np.arange(s.start, s.stop) for s in layout.values()]).astype(np.int64)
+
+
 def state_names(layout: dict[str, slice]) -> list[str]:
     """One name per value of the observation vector, from the env's `observation_layout` (grip_pos_x, ...)."""
     names = []
@@ -95,7 +121,7 @@ def features(obs_layout: dict[str, slice], cameras: Sequence[str], image_size: i
         return {"dtype": dtype, "shape": [1], "names": None}
 
     out: dict[str, dict[str, Any]] = {
-        "observation.state": vector(state_names(obs_layout)),
+        "observation.state": vector(state_names(state_layout(obs_layout, cameras))),
         "observation.environment_state": vector(["goal_x", "goal_y", "goal_z"]),
         "action": vector(ACTION_NAMES),
         "executed_action": vector(ACTION_NAMES),
@@ -115,19 +141,21 @@ def features(obs_layout: dict[str, slice], cameras: Sequence[str], image_size: i
 
 
 def frame_columns(arrays: dict[str, np.ndarray], episode: int, first_index: int, task: int,
-                  fps: int, corrected: bool = False) -> dict[str, np.ndarray]:
-    """One demo's rows of the data table, keyed as the features (without the videos). With `corrected`,
+                  fps: int, corrected: bool = False, state: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """One demo's rows of the data table, keyed as the features (without the videos). `state`: the indices of
+    the observation vector that `observation.state` holds (`state_index`; None: all of it). With `corrected`,
     who drove each step (`intervention`: a person who took over from the policy; false throughout a demo
     recorded without takeover) and what the policy proposed (`policy_action`; the action itself where no
     policy was asked)."""
     t = len(arrays["actions"])
+    observed = arrays["obs/observation"]
     frame = np.arange(t, dtype=np.int64)
     labels = {}
     if corrected:
         labels = {"intervention": np.asarray(arrays.get("intervention", np.zeros(t)), bool),
                   "policy_action": np.asarray(arrays.get("policy_actions", arrays["actions"]), np.float32)}
     return {
-        "observation.state": arrays["obs/observation"].astype(np.float32),
+        "observation.state": (observed if state is None else observed[:, state]).astype(np.float32),
         "observation.environment_state": arrays["obs/desired_goal"].astype(np.float32),
         # What a policy imitates: what the device meant (the expert's clean action under DART
         # noise); the action the arm was given, which replays the demo, beside it.

@@ -155,6 +155,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
     obs_layout = dict(env.observation_layout)
     task = env.task.instruction
     env.close()
+    state = lerobot.state_index(lerobot.state_layout(obs_layout, cameras))
     names = list(chosen)
     corrected = any("intervention" in ds.demo(name) for name in names)
     videos = {camera: _Video(av, root, video_key(camera), fps, size) for camera in cameras}
@@ -169,7 +170,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
         rendered = _rendered(ds, names, cameras, size, workers)
         for episode, (name, images) in enumerate(progress(zip(names, rendered, strict=True), len(names),
                                                           "export lerobot")):
-            columns = lerobot.frame_columns(ds.arrays(name), episode, frames, 0, fps, corrected)
+            columns = lerobot.frame_columns(ds.arrays(name), episode, frames, 0, fps, corrected, state)
             length = len(columns["index"])
             if writer is not None and data_files.full():
                 writer.close()
@@ -279,6 +280,6 @@ def _rendered(ds: Dataset, names: Sequence[str], cameras: Sequence[str], size: i
     from fetch.dataset.render_ahead import render_ahead
 
     jobs = ((name, ds.demo(name)["states"][:-1], episode_seed(ds.attrs(name))) for name in names)
-    for images in render_ahead(ds.env_id, ds.env_kwargs, size, workers, jobs, cameras):
+    for images in render_ahead(ds.env_id, ds.env_kwargs, size, workers, jobs, cameras, lerobot.IMAGE_QUALITY):
         assert images is not None  # every demo has states
         yield images
