@@ -317,6 +317,7 @@ def test_a_hostile_dataset_touches_nothing_outside_and_is_refused_in_one_line(
     if code == 2:
         lines = [line for line in err.strip().splitlines() if not line.startswith("collecting ")]  # collect's banner
         assert len(lines) == 1 and lines[0].startswith(f"gym-fetch {argv[0]}: error: "), said
+        assert str(d) in lines[0], f"the refusal does not name the dataset: {said}"
     if spec.refused is None:
         assert code in (0, 1, 2), said
         return
