@@ -159,6 +159,14 @@ def external_storage(group: h5py.Group, key: str, data: np.ndarray, v: pathlib.P
     group.create_dataset(key, shape=data.shape, dtype=data.dtype, external=[(str(v / "secret.bin"), 0, data.nbytes)])
 
 
+def bomb(shape: tuple[int, ...]) -> Callable[[h5py.Group, str, np.ndarray, pathlib.Path], None]:
+    """The key declared at `shape`, all zeros in gzip chunks: kilobytes on disk, gigabytes once read."""
+    def make(group: h5py.Group, key: str, data: np.ndarray, v: pathlib.Path) -> None:
+        group.create_dataset(key, shape=shape, dtype=np.float64, chunks=(1, min(shape[1], 2**16)),
+                             compression="gzip", fillvalue=0.0)
+    return make
+
+
 def virtual(group: h5py.Group, key: str, data: np.ndarray, v: pathlib.Path) -> None:
     layout = h5py.VirtualLayout(shape=(50, 4), dtype=np.float64)
     layout[:] = h5py.VirtualSource(str(v / "source.hdf5"), "x", shape=(50, 4))
@@ -238,6 +246,9 @@ ATTACKS: dict[str, Attack] = {
     "external_link_in_demo": Attack(demo_dataset("actions", external_link), r"external link"),
     "soft_link_in_demo": Attack(demo_dataset("actions", lambda g, k, data, v: g.__setitem__(
         k, h5py.SoftLink("/demo_1/expert_actions"))), r"soft link"),
+    # arrays declared far larger than their file: a compression bomb, rows beyond any demo
+    "compression_bomb": Attack(demo_dataset("states", bomb((200_000, 274))), r"rows"),
+    "compression_bomb_wide": Attack(demo_dataset("obs/observation", bomb((51, 2**24))), r"GiB once read"),
     # env ids that would make Gymnasium import a module
     "env_this": Attack(env_name("this:Reach-v2"), r"this:Reach-v2"),
     "env_shipped_module": Attack(env_name(shipped_module), MODULE),

@@ -15,20 +15,43 @@ when it is first read, the rest of an index when it is opened.
 
 from __future__ import annotations
 
+import math
+import os
 from typing import Any
 
 import h5py
 from h5py import h5d, h5l, h5o
 
-from fetch.errors import OutsideError
+from fetch.errors import DatasetError, OutsideError
+from fetch.tasks import MAX_STEPS
+
+MAX_ROWS = MAX_STEPS + 1
+"""The most rows an array of a demo has: one per step, and the start state (`fetch.tasks.MAX_STEPS`)."""
+EXPANSION = 200
+"""How many times its file's size a demo's arrays may take once read. Rendered images and physics states
+compress a few times over; an array of zeros declared at terabytes compresses to kilobytes (a compression
+bomb): that is not what the data's own size explains."""
+FLOOR = 256 * 2**20
+"""[bytes] What a demo's arrays may always take, whatever its file's size."""
 
 
 def check_sealed(group: h5py.Group, where: str) -> None:
     """OutsideError naming `where` (the file, the demo) and the member if anything below `group` reads
-    another file (an external link, a dataset with external storage, a virtual dataset) or is a soft link."""
-    problem = _links(group.id) or _datasets(group.id)
+    another file (an external link, a dataset with external storage, a virtual dataset) or is a soft link;
+    DatasetError if an array has more rows than a demo can (`MAX_ROWS`) or the arrays would take more memory
+    than their file's size explains (`EXPANSION`), before any is read."""
+    sizes: list[tuple[str, int, int]] = []
+    problem = _links(group.id) or _datasets(group.id, sizes=sizes)
     if problem:
         _refuse(where, problem)
+    for name, rows, _ in sizes:
+        if rows > MAX_ROWS:
+            raise DatasetError(f"{where}: {name} has {rows} rows, more than a demo has ({MAX_ROWS}: a state per step "
+                               "and the start); refused before reading")
+    total, file_bytes = sum(n for _, _, n in sizes), os.path.getsize(group.file.filename)
+    if total > max(FLOOR, EXPANSION * file_bytes):
+        raise DatasetError(f"{where}: its arrays would take {total / 2**30:.1f} GiB once read, from a file of "
+                           f"{file_bytes / 2**20:.1f} MiB (over {EXPANSION} times its size); refused before reading")
 
 
 def check_index(file: h5py.File, where: str, demos: str = "data") -> None:
@@ -92,16 +115,17 @@ def _links(gid: Any, prefix: str = "") -> str | None:
     return found[0] if found else None
 
 
-def _datasets(oid: Any, prefix: str = "") -> str | None:
-    """The first dataset at or below `oid` whose data lies in other files, said in words; None if there is none."""
+def _datasets(oid: Any, prefix: str = "", sizes: list[tuple[str, int, int]] | None = None) -> str | None:
+    """The first dataset at or below `oid` whose data lies in other files, said in words; None if there is none.
+    Each dataset's (name, rows, size in memory [bytes]) is appended to `sizes`."""
     if isinstance(oid, h5d.DatasetID):
-        return _dataset(oid, prefix)
+        return _dataset(oid, prefix, sizes)
     found: list[str] = []
 
     def visit(name: bytes, info: Any) -> int | None:
         if info.type != h5o.TYPE_DATASET or name == b".":
             return None
-        problem = _dataset(h5d.open(oid, name), _joined(prefix, name))
+        problem = _dataset(h5d.open(oid, name), _joined(prefix, name), sizes)
         if problem:
             found.append(problem)
             return 1
@@ -111,7 +135,10 @@ def _datasets(oid: Any, prefix: str = "") -> str | None:
     return found[0] if found else None
 
 
-def _dataset(did: Any, name: str) -> str | None:
+def _dataset(did: Any, name: str, sizes: list[tuple[str, int, int]] | None = None) -> str | None:
+    if sizes is not None:
+        shape = did.shape
+        sizes.append((name, shape[0] if shape else 1, did.get_type().get_size() * math.prod(shape)))
     plist = did.get_create_plist()
     if plist.get_layout() == h5d.VIRTUAL:
         return f"{name} is a virtual dataset (its rows come from other files)"
