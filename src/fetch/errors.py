@@ -32,3 +32,8 @@ def install_hint(extra: str) -> str:
     source tree, so it is `pip install ".[extra]"` run there (`pip install "gym-fetch-v2[extra]"` would
     look for it on PyPI, where it is not)."""
     return f'pip install ".[{extra}]" (in the gym-fetch-v2 source tree)'
+
+
+def one_line(e: BaseException | str) -> str:
+    """An error's message on one line (HDF5's and torch's span several)."""
+    return " ".join(str(e).split()) or type(e).__name__

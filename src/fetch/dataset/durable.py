@@ -17,7 +17,7 @@ import h5py
 from fetch._confine import inside, require_no_link, require_plain_file
 from fetch._durable import atomic_write, fsync_path, temporary
 from fetch.dataset import schema
-from fetch.errors import DatasetError, OutsideError
+from fetch.errors import DatasetError, OutsideError, one_line
 
 
 class BusyError(DatasetError):
@@ -149,10 +149,6 @@ def _demo_file_name(name: str) -> bool:
     except ValueError:
         return False
     return dot == "." and suffix == "hdf5"
-
-
-def one_line(e: BaseException | str) -> str:
-    return " ".join(str(e).split()) or type(e).__name__
 
 
 def _lock_file(lock: pathlib.Path, dataset: pathlib.Path) -> Any:

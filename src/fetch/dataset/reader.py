@@ -20,18 +20,13 @@ from fetch.dataset.demo_file import read_demo_group
 from fetch.dataset.durable import BusyError, editing, journal_renames
 from fetch.dataset.sealed import check_index, check_sealed
 from fetch.env import recorded_kwargs
-from fetch.errors import DatasetError, FetchError, OutsideError
+from fetch.errors import DatasetError, FetchError, OutsideError, one_line
 from fetch.tasks import ENV_IDS, MAX_STEPS
 
 FILE_HELP = "a dataset file (demos.hdf5) or the directory that holds it"
 """The help of every subcommand's dataset argument (what `open_dataset` takes)."""
 READ_ERRORS: tuple[type[Exception], ...] = (OSError, KeyError, RuntimeError, ValueError, TypeError)
 """What h5py raises on a damaged file; which one depends on the structure a damaged byte hit."""
-
-
-def one_line(e: BaseException | str) -> str:
-    """An error's message on one line (HDF5's span several)."""
-    return " ".join(str(e).split()) or type(e).__name__
 
 
 def resolve(path: str | os.PathLike[str]) -> pathlib.Path:

@@ -16,7 +16,7 @@ import torch
 from fetch import observation as ob
 from fetch.compiled import compiled_task
 from fetch.env import recorded_kwargs
-from fetch.errors import FetchError
+from fetch.errors import FetchError, one_line
 from fetch.learn.data import flat_obs
 from fetch.learn.kinds import PolicyConfig
 from fetch.learn.policies import build
@@ -43,10 +43,6 @@ def check(file: pathlib.Path, state: Mapping[str, Any]) -> None:
         _check(state)
     except FetchError as e:
         raise FetchError(f"{file}: {one_line(e)}") from e
-
-
-def one_line(e: BaseException) -> str:
-    return " ".join(str(e).split()) or type(e).__name__
 
 
 def _check(state: Mapping[str, Any]) -> None:
