@@ -1,7 +1,7 @@
 """The real consumer: lerobot's own `LeRobotDataset` loads `gym-fetch export --to lerobot`.
 
-Runs only where lerobot is installed (its own virtualenv: torch, torchcodec; see the README's
-"Export to LeRobot"), and is skipped in the main test environment.
+Runs only where lerobot is installed (0.4.4 on Python 3.11 and 0.6 on 3.12, each in its own virtualenv:
+scripts/make_lerobot_venv.sh, scripts/make_lerobot06_venv.sh), and is skipped in the main test environment.
 """
 
 from __future__ import annotations
@@ -86,7 +86,11 @@ def test_lerobot_loads_the_export(reach_demos: pathlib.Path, tmp_path: pathlib.P
     assert dataset.meta.stats["action"]["mean"].shape == (4,)
     # A LeRobot policy learns `action` alone: the applied `executed_action` is not taken for another one.
     from lerobot.configs.types import FeatureType
-    from lerobot.datasets.utils import dataset_to_policy_features
+
+    try:  # lerobot 0.6 moved it
+        from lerobot.utils.feature_utils import dataset_to_policy_features
+    except ImportError:  # 0.4
+        from lerobot.datasets.utils import dataset_to_policy_features
 
     policy_features = dataset_to_policy_features(dataset.meta.features)
     assert [k for k, f in policy_features.items() if f.type is FeatureType.ACTION] == ["action"]
