@@ -12,7 +12,7 @@ cd "$(dirname "$0")/.."
 venv=${1:-.venv-lerobot06}
 python=${PYTHON312:-}
 if [ -z "$python" ]; then
-    for candidate in python3.13 python3.12 ~/.pyenv/versions/3.12.*/bin/python3; do
+    for candidate in python3.12 ~/.pyenv/versions/3.12.*/bin/python3 python3.13; do  # 3.12: what it is tested on
         if command -v "$candidate" >/dev/null 2>&1 \
                 && "$candidate" -c 'import sys; sys.exit(sys.version_info < (3, 12))' 2>/dev/null; then
             python=$candidate
