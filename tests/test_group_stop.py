@@ -132,8 +132,17 @@ def test_a_ctrl_c_while_the_command_loads_exits_130_without_a_traceback(tmp_path
     command = pathlib.Path(sys.executable).with_name("gym-fetch")
     if not command.exists():
         pytest.skip(f"the gym-fetch command is not installed beside {sys.executable}")
+    def run(*args: str) -> float:
+        start = time.perf_counter()
+        subprocess.run([str(command), *args], capture_output=True, timeout=60)
+        return time.perf_counter() - start
+
+    # The Ctrl-Cs land at fractions of the time the command takes on this machine now (0.2 s on a quiet
+    # one, more under load): fixed delays from 0.05 s to 0.6 s left it loading for two of them at most
+    # on a quiet machine, and the test failed for want of Ctrl-Cs that landed while it loaded.
+    whole = min(run("info", str(tmp_path / "none")) for _ in range(2))
     codes = []
-    for delay in (0.05, 0.1, 0.2, 0.3, 0.45, 0.6):
+    for delay in (0.1 * whole, 0.25 * whole, 0.4 * whole, 0.55 * whole, 0.7 * whole, 1.5 * whole):
         # As from a terminal: Ctrl-C not ignored. A suite started in the background (`cmd &` in a script, as
         # CI may be) ignores SIGINT, and so would the command; it respects that until `fetch.cli` installs
         # its own handlers, and the early Ctrl-Cs were then lost (exit 2: codes [2, 2, 130, 130, 2, 2]).
