@@ -104,7 +104,7 @@ def journal_renames(index: pathlib.Path) -> list[tuple[pathlib.Path, pathlib.Pat
     stranger's folder must not move their files (`["payload.sh", "/home/me/.bashrc"]`) or a folder in."""
     journal = journal_of(index)
     root = index.parent
-    if not journal.exists() and not journal.is_symlink():
+    if not os.path.lexists(journal):  # a link there, even a dangling one, is refused below
         return None
     refused = f"{journal} (the renames of an interrupted edit)"
     try:

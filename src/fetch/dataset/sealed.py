@@ -59,16 +59,17 @@ def check_index(file: h5py.File, where: str, demos: str = "data") -> None:
     are checked where they are read (`Dataset.demo`), so a tool that reads a few demos of a large merged file
     pays for those few. External links directly in `demos` (a collector's links to its demo files) are let
     through, to be checked where they are followed."""
-    problems: list[str] = []
-    members = _members(file.id)  # (a visit is never started inside another's callback: HDF5 errors there
-    for name, kind in members:   # escape h5py's lock as a SystemError)
+    problems: list[str | None] = []
+    # The members are listed first, then checked: a visit started inside another's callback lets an HDF5
+    # error (a corrupt heap) escape h5py's lock as a SystemError.
+    for name, kind in _members(file.id):
         if kind == h5l.TYPE_SOFT:
             problems.append(f"{name} is a soft link")
-        elif kind not in (h5l.TYPE_HARD, h5l.TYPE_SOFT):
+        elif kind != h5l.TYPE_HARD:
             problems.append(f"{name} is an external link")
         elif name != demos:
             member = h5o.open(file.id, name.encode())
-            problems.append(_links(member, name) or _datasets(member, name) or "")
+            problems.append(_links(member, name) or _datasets(member, name))
     data = file.get(demos)
     if isinstance(data, h5py.Group):
         for name, kind in _members(data.id):
@@ -77,10 +78,10 @@ def check_index(file: h5py.File, where: str, demos: str = "data") -> None:
             elif kind == h5l.TYPE_HARD:
                 member = h5o.open(data.id, name.encode())
                 if isinstance(member, h5d.DatasetID):  # not a demo: say why if it reads another file
-                    problems.append(_dataset(member, f"{demos}/{name}") or "")
-    problems = [p for p in problems if p]
-    if problems:
-        _refuse(where, problems[0])
+                    problems.append(_dataset(member, f"{demos}/{name}"))
+    first = next((p for p in problems if p), None)
+    if first:
+        _refuse(where, first)
 
 
 def _members(gid: Any) -> list[tuple[str, int]]:
