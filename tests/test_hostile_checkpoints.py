@@ -20,6 +20,7 @@ torch = pytest.importorskip("torch")
 
 from fetch.cli import main  # noqa: E402
 from fetch.errors import FetchError  # noqa: E402
+from test_corrupt_inputs import snapshot  # noqa: E402
 
 TRAINING = ["--steps", "3", "--hidden", "8", "--batch-size", "16", "--checkpoint-every", "1000"]
 """A tiny run: these tests check what is refused, not what is learnt."""
@@ -273,12 +274,6 @@ def test_resuming_a_crafted_run_is_refused_in_one_line(made: tuple[pathlib.Path,
 
 # -- the run folder's names: links where a tool reads or writes the checkpoint --------------------------
 
-def _victim(root: pathlib.Path) -> dict[str, bytes]:
-    (root / "victim").mkdir()
-    (root / "victim" / "v6.txt").write_text("version 6\n")
-    return {p.name: p.read_bytes() for p in (root / "victim").iterdir()}
-
-
 @pytest.mark.parametrize("plant", ["tmp_link", "checkpoint_link_out"])
 def test_a_run_folder_s_links_are_never_written_through_nor_read_out_of(
         made: tuple[pathlib.Path, pathlib.Path], tmp_path: pathlib.Path, plant: str,
@@ -286,20 +281,21 @@ def test_a_run_folder_s_links_are_never_written_through_nor_read_out_of(
     """`run/.checkpoint.pt.tmp -> v6.txt`, then `train ... --out run` (resume) overwrote v6.txt with the
     checkpoint; `run/checkpoint.pt` a link to a file outside was read as the run's."""
     demos, trained = made
-    run = tmp_path / "run"
-    before = _victim(tmp_path)
+    run, victim = tmp_path / "run", tmp_path / "victim"
+    victim.mkdir()
+    (victim / "v6.txt").write_text("version 6\n")
     if plant == "tmp_link":  # in a folder without a checkpoint yet: the training writes one
         run.mkdir()
-        (run / ".checkpoint.pt.tmp").symlink_to(tmp_path / "victim" / "v6.txt")
+        (run / ".checkpoint.pt.tmp").symlink_to(victim / "v6.txt")
     else:
         shutil.copytree(trained, run)
-        shutil.move(str(run / "checkpoint.pt"), tmp_path / "victim" / "checkpoint.pt")
-        before = _victim_again(tmp_path)
-        (run / "checkpoint.pt").symlink_to(tmp_path / "victim" / "checkpoint.pt")
+        shutil.move(str(run / "checkpoint.pt"), victim / "checkpoint.pt")
+        (run / "checkpoint.pt").symlink_to(victim / "checkpoint.pt")
+    before = snapshot(victim)
     capsys.readouterr()
     code = main(["train", str(demos), "--out", str(run), *TRAINING])
     err = capsys.readouterr().err
-    assert {p.name: p.read_bytes() for p in (tmp_path / "victim").iterdir()} == before
+    assert snapshot(victim) == before
     if plant == "tmp_link":
         assert code == 0 and not (run / "checkpoint.pt").is_symlink(), err
     else:
@@ -308,10 +304,6 @@ def test_a_run_folder_s_links_are_never_written_through_nor_read_out_of(
             from fetch.learn import load
 
             load(run)
-
-
-def _victim_again(root: pathlib.Path) -> dict[str, bytes]:
-    return {p.name: p.read_bytes() for p in (root / "victim").iterdir()}
 
 
 # -- every case against every tool that opens a run, in this process (a refusal takes milliseconds) -----
@@ -328,10 +320,6 @@ RUN_TOOLS: dict[str, list[str]] = {
 """Each tool that reads a run's checkpoint; a new one joins by one line."""
 
 
-def _tree(root: pathlib.Path) -> dict[str, bytes | None]:
-    return {str(p.relative_to(root)): p.read_bytes() if p.is_file() else None for p in sorted(root.rglob("*"))}
-
-
 @pytest.mark.parametrize("tool", list(RUN_TOOLS))
 @pytest.mark.parametrize("case", list(CASES))
 def test_every_tool_refuses_every_crafted_checkpoint_in_one_line(
@@ -343,7 +331,7 @@ def test_every_tool_refuses_every_crafted_checkpoint_in_one_line(
     demos, trained = made
     run = _crafted(trained, tmp_path / "run", case)
     argv = [a.format(run=run, demos=demos, t=tmp_path) for a in RUN_TOOLS[tool]]
-    imported, before, given = set(sys.modules), _tree(tmp_path), _tree(demos)
+    imported, before, given = set(sys.modules), snapshot(tmp_path), snapshot(demos)
     capsys.readouterr()
     start = time.perf_counter()
     try:
@@ -357,6 +345,6 @@ def test_every_tool_refuses_every_crafted_checkpoint_in_one_line(
     assert code == 2 and "Traceback" not in out + err, said
     assert len(lines) == 1 and lines[0].startswith(f"gym-fetch {argv[0]}: error: "), said
     assert str(run / "checkpoint.pt") in lines[0] and CASES[case][1] in lines[0], said
-    assert _tree(tmp_path) == before and _tree(demos) == given, "a refused run wrote something"
+    assert snapshot(tmp_path) == before and snapshot(demos) == given, "a refused run wrote something"
     assert {"this", "venv.__main__"} & (set(sys.modules) - imported) == set(), said
     assert seconds < 30, f"{seconds:.0f} s: {said}"
