@@ -124,7 +124,7 @@ def _whole(name: str, value: object, low: int, high: int, why: str) -> None:
 
 def _tensor(value: object) -> TypeGuard[torch.Tensor]:
     """Whether `value` is a plain dense tensor (not a parameter, nor sparse)."""
-    return type(value) is torch.Tensor and value.layout == torch.strided
+    return isinstance(value, torch.Tensor) and type(value) is torch.Tensor and value.layout == torch.strided
 
 
 def _described(value: object) -> str:
