@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pickle
 import warnings
+from typing import Any
 
 import gymnasium as gym
 import mujoco
@@ -14,6 +15,7 @@ from gymnasium.utils.env_checker import check_env
 import fetch
 from conftest import ENV_IDS, rollout_actions
 from fetch.env import FetchEnv
+from fetch.robot import action_rule, checked_action, checked_actions
 
 
 def test_import_registers_the_spec_s_ten_ids_from_the_task_table() -> None:
@@ -214,6 +216,21 @@ def test_wrong_action_shape_raises(env: gym.Env) -> None:
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(4,\)"):
         env.step(np.zeros(3))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64, np.float16, np.int64, ">f4"])
+def test_the_steps_scalar_check_gives_the_general_rules_numbers(dtype: Any) -> None:
+    """`checked_action` (FetchEnv.step's path) against `checked_actions` + `action_rule` (the vector
+    env's): the same clipped action, of the same dtype, and the same move and grip, bit for bit."""
+    rng = np.random.default_rng(0)
+    edges = np.array([[-1.0, 1.0, -0.0, 0.0], [1.5, -7.0, 1e-30, -1e-30], [0.999999, -0.3333333, 0.05, 2.0]])
+    for action in np.concatenate([edges, rng.uniform(-1.5, 1.5, (300, 4))]).astype(dtype):
+        clipped, move, grip = checked_action(action)
+        want = checked_actions(action)
+        want_move, want_grip = action_rule(want)
+        assert clipped.dtype == want.dtype
+        assert clipped.tobytes() == want.tobytes(), action
+        assert np.array(move).tobytes() == want_move.tobytes() and np.float64(grip).tobytes() == want_grip.tobytes()
 
 
 def test_out_of_range_actions_are_clipped(env_id: str) -> None:

@@ -19,7 +19,7 @@ from fetch import observation as ob
 from fetch.compiled import STATE_SPEC, compiled_task, mjb_hash, portable_hash
 from fetch.errors import FetchError, UnknownNameError
 from fetch.looks import LOOKS, Looks, check_looks
-from fetch.robot import Robot, action_rule, checked_actions
+from fetch.robot import Robot, checked_action
 from fetch.tasks import mirroring_ids, task_class
 from fetch.tasks.base import FINGER_PAIRS, REWARD_TYPES, Task, goal_distance, mocap_index
 from fetch.tasks.base import reward as task_reward
@@ -182,10 +182,9 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         a = np.asarray(action)
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}")
-        a = checked_actions(a)  # the one check and clip between a device and the physics
-        self.last_action = a
-        move, grip = action_rule(a)
-        self.robot.apply(move.tolist(), float(grip))
+        # the one check and clip between a device and the physics
+        self.last_action, move, grip = checked_action(a)
+        self.robot.apply(move, grip)
         self.robot.advance(self.model, self.data)
         obs, info = self._observe()
         reward = task_reward(self.reward_type, info["is_success"], info["distance"])
