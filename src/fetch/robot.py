@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import struct
 
 import mujoco
 import numpy as np
@@ -82,12 +83,16 @@ def checked_action(action: np.ndarray) -> tuple[np.ndarray, list[float], float]:
         values = [min(max(v, -1.0), 1.0) for v in values]  # np.clip's result, float for float
     x, y, z, g = values
     clipped = np.array((x, y, z, g), a.dtype)
-    if a.dtype == np.float32:  # the move in float32 arithmetic, as `action_rule`'s
-        return clipped, (clipped[:3] * ACTION_STEP).tolist(), g
+    if a.dtype == np.float32:
+        # float32 arithmetic, as `action_rule`'s: the product of two float32s is exact in a double, so
+        # rounding it to float32 once (packing it) is the float32 product
+        return clipped, list(_THREE_FLOAT32.unpack(_THREE_FLOAT32.pack(x * _STEP32, y * _STEP32, z * _STEP32))), g
     return clipped, [x * ACTION_STEP, y * ACTION_STEP, z * ACTION_STEP], g
 
 
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+_STEP32 = float(np.float32(ACTION_STEP))
+_THREE_FLOAT32 = struct.Struct("=3f")
 
 
 def action_rule(actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -219,16 +224,14 @@ class Robot:
         `present` does the part the observation needs: the motion stays the same to 1e-15 m.)
         """
         # Sensors only feed the observation: computing them in every physics step cost a fifth of
-        # the step. They are off until the last call, which computes them from the final state.
+        # the step. They are off for the steps; `present` computes them from the final state.
         opt = model.opt
         flags = opt.disableflags
         opt.disableflags = flags | _NO_SENSORS
-        mujoco.mj_step(model, data, nstep=N_SUBSTEPS - 1)
-        mujoco.mj_step1(model, data)
-        if not self._block_gripper:
-            pos, quat = self._hand_pos.copy(), self._hand_quat.copy()
-        mujoco.mj_step2(model, data)
+        mujoco.mj_step(model, data, nstep=N_SUBSTEPS)
         opt.disableflags = flags
+        if not self._block_gripper:  # the kinematics of the last step's start: integration moves only qpos
+            pos, quat = self._hand_pos.copy(), self._hand_quat.copy()
         if self._block_gripper:
             qpos = self._qpos
             for adr in self._finger_qpos:
