@@ -3,7 +3,7 @@
 Per task, `--steps` steps of random full-scale actions (each of a[0..3] is -1 or +1, held for a
 random 1-5 steps so the hand really drives into things), a reset every 50 steps with a new seed.
 After every step: the deepest contact (-dist over all contacts) and which geoms, and the fastest
-free body (linear speed [m/s]). Prints a table; docs/benchmarks.md holds the numbers.
+free body (linear speed [m/s]). Prints a table; docs/results/bench_abuse.md holds the numbers.
 
 `--contacts mujoco` gives our room's geoms MuJoCo's default contacts, as they were before the
 room's stiff ones (fetch.scene.ROOM_SOLREF). `--experts N` adds the experts' success under the

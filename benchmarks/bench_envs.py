@@ -78,10 +78,10 @@ class Recording:
 def record_by_hook(env: gym.Env, actions: Sequence[np.ndarray], seed: int) -> Recording:
     """Capture each step's state at its first physics call (action applied) by wrapping mujoco.
 
-    Works for both envs without re-implementing either: gymnasium-robotics calls `mj_step(nstep)`;
-    ours calls `mj_step2`, `mj_step(nstep - 1)`, `mj_step1` (the same 20 physics steps of work,
-    ending with the positions and sensors the observation reads). A replay checks that the
-    recorded states are the env's own.
+    Works for both envs without re-implementing either: both call `mj_step(nstep)` (ours with the
+    sensors off, then computes the positions and sensors the observation reads; mj_step1 and mj_step2
+    are wrapped too, for an env that splits its last step). A replay checks that the recorded states
+    are the env's own.
     """
     u: Any = env.unwrapped
     model = u.model

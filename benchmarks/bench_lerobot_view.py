@@ -14,8 +14,8 @@ import tempfile
 import time
 
 from fetch.dataset import open_dataset
-from fetch.dataset.export import export_lerobot
-from fetch.dataset.view import build_view
+from fetch.dataset.exports.export import export_lerobot
+from fetch.dataset.page.view import build_view
 
 
 def cpu() -> tuple[float, float]:

@@ -20,7 +20,7 @@ from benchmarks._machine import machine_line
 from fetch.dataset import open_dataset
 from fetch.dataset.episode import EpisodeBuffer
 from fetch.dataset.formats import open_writer, recorded_layout
-from fetch.dataset.replay import check_demo, make_replay_env
+from fetch.dataset.replay.check import check_demo, make_replay_env
 from fetch.dataset.writer import DatasetWriter
 from fetch.teleop.expert import ExpertDevice
 from fetch.teleop.session import CollectConfig, Session, make_env

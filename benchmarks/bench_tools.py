@@ -19,7 +19,7 @@ import h5py
 
 from benchmarks._machine import machine_line
 from fetch.cli import main
-from fetch.dataset.render_obs import default_workers, render_obs
+from fetch.dataset.replay.render_obs import default_workers, render_obs
 
 
 def timed(argv: list[str]) -> float:

@@ -196,7 +196,7 @@ def trained(env_id: str, kind: str, root: pathlib.Path, results: dict[str, dict[
     training seed)."""
     from learning_curves import auto_variant, train_and_evaluate  # the harness of the 100-expert-demo figures
 
-    from fetch.learn.settings import task_training
+    from fetch.learn.recipes import task_training
 
     policy = auto_variant(env_id)
     steps = task_training(env_id).steps
@@ -217,8 +217,7 @@ def policy_key(kind: str, env_id: str) -> str:
     takes other than its default steps on the task, those (results from before that setting lack them)."""
     from learning_curves import auto_variant
 
-    from fetch.learn.settings import task_training
-    from fetch.tasks import Training
+    from fetch.learn.recipes import Training, task_training
 
     steps = task_training(env_id).steps
     return f"policy/{kind}/{env_id}/{auto_variant(env_id)}" + (f"/{steps}steps" if steps != Training().steps else "")
@@ -230,7 +229,7 @@ def print_policies(results: dict[str, dict[str, Any]], tasks: list[str], curves:
     from learning_curves import auto_variant
     from learning_curves import load_results as curve_results
 
-    from fetch.learn.settings import task_training
+    from fetch.learn.recipes import task_training
 
     if not any(policy_key(kind, t) in results for kind in TRAINED for t in tasks):
         return

@@ -7,8 +7,8 @@ Run with the train extra installed (torch; matplotlib for the plot, optional):
 Every run (task, recording, policy, demos, training seed) trains with `fetch.learn.train` and
 evaluates 100 episodes on seeds disjoint from the data's; its result is one JSON file under
 `--results`, so a killed benchmark picks up where it stopped (a run already done is skipped, a
-half-trained one resumes from its checkpoint). After every run it rewrites the markdown table
-(`docs/learning_curves.md`) and the plot (`docs/images/learning_curves.png`) from the results so far.
+half-trained one resumes from its checkpoint). After every run it rewrites the results page
+(`docs/results/learning_curves.md`) and the plot (`docs/images/learning_curves.png`) from the results so far.
 
 Recordings, each made once by `gym-fetch collect --device expert` with the flags in `RECORDINGS`:
 `dart` is the collector's default (the executed action perturbed by N(0, 0.1), the expert's clean
@@ -24,6 +24,7 @@ import dataclasses
 import json
 import os
 import pathlib
+import platform
 import shutil
 import subprocess
 import sys
@@ -33,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks import pixel_curves
+from benchmarks._machine import cpu_model, version
 
 CURVE_TASKS = ("Push-v2", "PickPlace-v2", "Drawer-open-v2", "Bin-place-v2", "Box-close-v2")
 ALL_TASKS = ("Bin-pick-v2", "Bin-place-v2", "Box-open-v2", "Box-close-v2", "Drawer-open-v2", "Drawer-close-v2",
@@ -64,7 +65,7 @@ MEASURED_VARIANTS: dict[str, dict[str, Any]] = {
     "mlp-chunk-x5-offsets-mirror": {"kind": "mlp-chunk", "members": 5, "goal_offsets": True, "mirror": True},
     "gru-mirror": {"kind": "gru", "mirror": True},
 }
-"""What `--policy auto` trains where it adds settings to a kind (the task table's `fetch.tasks.Training`): an
+"""What `--policy auto` trains where it adds settings to a kind (the task's recipe, `fetch.learn.recipes`): an
 ensemble, goal offsets; `mirror` is the training setting (`Training.mirror`: the demos'
 mirror images too)."""
 
@@ -72,8 +73,7 @@ mirror images too)."""
 def auto_variant(task: str) -> str:
     """The name (a `POLICY_VARIANTS` or `MEASURED_VARIANTS` key) of what `gym-fetch train --policy auto` trains
     on `task`."""
-    from fetch.learn.settings import task_training
-    from fetch.tasks import Training
+    from fetch.learn.recipes import Training, task_training
 
     auto, plain = task_training(task), Training()
     changed = [name for name in Training._fields
@@ -101,9 +101,9 @@ class Job:
 
 def measured_steps() -> dict[str, int]:
     """The tasks on which `gym-fetch train` takes other than the default steps, and those steps."""
-    from fetch.tasks import REGISTRATIONS, Training
+    from fetch.learn.recipes import RECIPES, Training
 
-    return {r.env_id: r.training.steps for r in REGISTRATIONS if r.training.steps != Training().steps}
+    return {env_id: recipe.steps for env_id, recipe in RECIPES.items() if recipe.steps != Training().steps}
 
 
 def jobs() -> Iterator[Job]:
@@ -152,7 +152,9 @@ def run(job: Job, results: pathlib.Path, steps: int) -> dict[str, Any]:
     dataset = collected(results, job.task, job.recording, job.demos)
     outcome = train_and_evaluate(dataset, results / "runs" / job.name, job.policy, job.seed, job.steps or steps,
                                  job.demos)
-    return {**dataclasses.asdict(job), **outcome}
+    return {**dataclasses.asdict(job), **outcome, "date": time.strftime("%Y-%m-%d"), "cpu": cpu_model(),
+            "cores": os.cpu_count(), "versions": f"python {platform.python_version()}, mujoco {version('mujoco')}, "
+                                                 f"torch {version('torch')}"}
 
 
 def train_and_evaluate(dataset: pathlib.Path, run_dir: pathlib.Path, policy_name: str, seed: int, steps: int,
@@ -210,12 +212,15 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
         return [r for r in results if all(r[k] == v for k, v in match.items())]
 
     lines = ["# Learning curves", "",
-             "Written by `benchmarks/learning_curves.py` (see its docstring); success % is `is_success` at step 50",
-             f"of {EPISODES} evaluation episodes on seeds from 1,000,000 up (none from the data), mean ± std over the",
-             f"training seeds that have finished (their count in brackets). {steps} gradient steps per run "
+             "How a policy trained on N expert demos does, per task, recording and policy: each run trains on "
+             "`gym-fetch collect --device expert` demos and evaluates on seeds none of them used.", "",
+             "```bash", "python -m benchmarks.learning_curves --results runs/curves   # resumes; "
+             "--report-only rewrites this page", "```", "",
+             f"Success % is `is_success` at step 50 of {EPISODES} evaluation episodes on seeds from 1,000,000 up, "
+             "mean ± std over the training seeds that have finished (their count in brackets). "
+             f"{steps} gradient steps per run "
              f"({'; '.join(f'{n} on {t}' for t, n in sorted(measured_steps().items()))} in the first table, as "
-             "`gym-fetch train` takes there), "
-             "one thread, a machine of 2 cores shared with other work.", ""]
+             "`gym-fetch train` takes there), one thread, on a 2-core x86 VM shared with other work.", ""]
     sections = (("## 100 expert demos, every task, with the defaults (the bar: >= 80 % on all but Slide)",
                  "Recorded as `gym-fetch collect --device expert` now does (DART noise 0.1, to the horizon; the "
                  "policy learns `expert_actions`), trained with `gym-fetch train`'s default policy (`auto`: gru, "
@@ -248,6 +253,7 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
     for task in CURVE_TASKS:
         cells = [_cell(pick(task=task, recording="stop", policy="mlp-chunk", demos=n)) for n in CURVE_DEMOS]
         lines.append(f"| `{task}` | " + " | ".join(cells) + " |")
+    lines += ["", "![Success against the number of demos, mlp-chunk](../images/learning_curves.png)"]
     lines += ["", "## How the demos are recorded (100 demos)", "",
               "stop: the attempt ends 10 steps after success (the collector's default); hold: "
               "`--no-stop-on-success`, every demo runs the 50-step horizon; dart: as hold, the executed action "
@@ -266,6 +272,14 @@ def report(results: list[dict[str, Any]], steps: int) -> str:
                             if (rows := pick(task=task, recording="stop", policy=p, demos=100)))
         lines.append(f"| `{task}` | " + " | ".join(cells) + f" | {seconds} |")
     return "\n".join(lines) + "\n"
+
+
+def machines(results: list[dict[str, Any]]) -> list[str]:
+    """The page's last section: the CPUs and versions the results ran with, and the latest run's date."""
+    seen = sorted({f"{r['cpu']}, {r['cores']} cores; {r['versions']}" for r in results if "cpu" in r})
+    dates = [r["date"] for r in results if "date" in r]
+    return (["", "## Machine and versions", "", *(f"- {s}" for s in seen or ["not recorded with these runs"])]
+            + ([f"\nLatest run measured on {max(dates)}."] if dates else []))
 
 
 def plot(results: list[dict[str, Any]], path: pathlib.Path) -> bool:
@@ -311,7 +325,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--results", default="/tmp/gym-fetch-learning-curves",
                    help="directory of datasets, runs and one result file per run (default %(default)s)")
     p.add_argument("--docs", default=str(pathlib.Path(__file__).resolve().parents[1] / "docs"),
-                   help="where learning_curves.md and images/learning_curves.png go (default: the repo's docs/)")
+                   help="the docs folder: results/learning_curves.md and images/learning_curves.png go there "
+                        "(default: the repo's docs/)")
     p.add_argument("--steps", type=int, default=None, help="gradient steps per run (default: gym-fetch train's)")
     p.add_argument("--limit", type=int, default=0, help="stop after this many new runs (default 0: all)")
     p.add_argument("--shard", default="0/1", metavar="K/N",
@@ -381,12 +396,11 @@ def _publish(results: pathlib.Path, docs: pathlib.Path, steps: int) -> None:
     choices = choices_table(results)
     if choices:
         text += "\n" + choices
-    pixels = pixel_curves.table(pixel_curves.load(pixel_curves.RECORDS))  # benchmarks.pixel_curves' section
-    if pixels:
-        text = pixel_curves.with_section(text, pixel_curves.HEADING, pixels)
-    tmp = docs / ".learning_curves.md.tmp"
+    text += "\n".join(machines(found)) + "\n"
+    (docs / "results").mkdir(parents=True, exist_ok=True)
+    tmp = docs / "results" / ".learning_curves.md.tmp"
     tmp.write_text(text)
-    os.replace(tmp, docs / "learning_curves.md")
+    os.replace(tmp, docs / "results" / "learning_curves.md")
     if not plot(found, docs / "images" / "learning_curves.png"):
         print("matplotlib is not installed: no plot (pip install matplotlib)", file=sys.stderr)
 

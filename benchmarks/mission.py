@@ -6,7 +6,7 @@
         [--train-args "--steps 3000"]
 
 1. teleop: 10 demos through the real gamepad path (SDL's virtual pad, the real `GamepadDevice` and
-   collector), driven by a stand-in for a person of `--style` (`tests/operators.py`: the expert's
+   collector), driven by a stand-in for a person of `--style` (`fetch.testing.operators`: the expert's
    intent, carried out with that style's habits: pace, pauses, a missed grasp, gripper habits,
    approach paths; docs/operators.md);
 2. `gym-fetch generate` multiplies them into `--generated` demos (with `--inputs pixels`, rendering the
@@ -40,7 +40,7 @@ def teleop(env_id: str, out: pathlib.Path, demos: int, style: str, seed: int = 0
     from fetch.experts import make_expert
     from fetch.teleop.gamepad import GamepadDevice
     from fetch.teleop.session import CollectConfig, Session, make_env
-    from tests import operators, vpad  # the stand-in operator and SDL's virtual pad, shared with the tests
+    from fetch.testing import operators, vpad
 
     vpad.init_headless()
     pad = vpad.VirtualPad()
@@ -103,7 +103,7 @@ def main() -> None:
                         help="the share of --generated made from tight starts (generate --starts tight), where the "
                              "task has any (default %(default)s; 0: none)")
     parser.add_argument("--style", default="standin",
-                        help="the stand-in operator's way of driving (tests/operators.py STYLES; default standin)")
+                        help="the stand-in operator's way of driving (fetch.testing.operators STYLES; default standin)")
     parser.add_argument("--seed", type=int, default=0, help="the collection's first reset seed and the operator's")
     parser.add_argument("--generate-noise", type=float, default=None,
                         help="gym-fetch generate --noise (default: generate's own default)")

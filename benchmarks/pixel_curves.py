@@ -9,11 +9,10 @@ The demos are those `benchmarks.mission --env TASK --inputs pixels --dir /tmp/mi
 starts, a dataset of its own that this does not use): run that first. Each run trains, with `gym-fetch train`'s
 defaults, on the first N demos of mask/train (`DEMOS`: 10, 100 and all) either the pixel policy (`--inputs pixels`)
 or the state policy (`--policy auto`), with training seed 0, 1 or 2, and evaluates it on 100 episodes of seeds
-disjoint from the data's. Every run's result is one line of `RECORDS`, in the repository (the curves go on from
-any machine: a run recorded there is skipped), and its trained policy is under `--results`/runs (a half-trained
-run resumes from its checkpoint after an interruption). After each run it rewrites its section of
-docs/learning_curves.md from the records (`HEADING`; the rest of the page is `benchmarks.learning_curves`',
-which writes this section from the records too).
+disjoint from the data's. Every run's result is one line of `RECORDS` (benchmarks/out/, which git ignores; copy
+it to another machine and the curves go on there: a run recorded in it is skipped), and its trained policy is
+under `--results`/runs (a half-trained run resumes from its checkpoint after an interruption). After each run it
+rewrites the table of docs/results/pixel_curves.md from the records (the section under `HEADING`).
 
 A run is one `gym-fetch train` with that many demos: the pixel policy takes its 6000 steps whatever the
 number of demos (on 2 cores about 9 minutes with bf16, 12 in fp32 with AVX512), the state policy the task's
@@ -27,6 +26,7 @@ import collections
 import dataclasses
 import json
 import pathlib
+import re
 import time
 from typing import Any
 
@@ -40,13 +40,14 @@ DEMOS = (10, 100, 0)
 INPUTS = ("pixels", "state")
 SEEDS = (0, 1, 2)
 EPISODES = 100
-HEADING = "## From the cameras against from the state (the mission's generated demos)"
-"""The section of docs/learning_curves.md this benchmark writes."""
-RECORDS = pathlib.Path(__file__).resolve().parent / "results" / "pixel_curves.jsonl"
-"""Every run's result, one JSON object a line, oldest first. Kept in the repository: kept in /tmp before, the results
-were lost with each machine, and the table could be written again only from what one machine still had. The 71
-runs of 2026-11-29 were rebuilt from the table then published (`reconstructed` says so): their success exactly,
-their commit from the docs' history, and as training time their row's mean (each run's own was not published)."""
+HEADING = "## Current table"
+"""The section of `PAGE` this benchmark writes."""
+PAGE = "results/pixel_curves.md"
+"""The results page, under --docs."""
+RECORDS = pathlib.Path(__file__).resolve().parent / "out" / "pixel_curves.jsonl"
+"""Every run's result, one JSON object a line, oldest first: a benchmark's raw output, outside git (benchmarks/out/
+is ignored). Records marked `reconstructed` were rebuilt from a published table: their success exact, their
+training time their row's mean."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,19 +129,23 @@ def _places(found: list[dict[str, Any]]) -> list[tuple[str, str]]:
 
 
 def where_run(found: list[dict[str, Any]]) -> str:
-    """The CPUs and precisions the results were measured with, one clause each with its dates and the commits
-    measured there in the order their first run finished, numbered [1], [2] ... where there are several (the
-    times in the table are only comparable within one clause, and say which)."""
-    commits: dict[tuple[str, str], collections.Counter[str]] = collections.defaultdict(collections.Counter)
-    for r in sorted(found, key=lambda r: r.get("finished", 0.0)):
-        commits[_place(r)][r.get("commit", "unrecorded")] += 1
-    clauses = []
-    for cpu, precision in _places(found):
-        dates = sorted({r.get("date", "undated") for r in found if _place(r) == (cpu, precision)})
-        clauses.append(f"{dates[0]}{f' to {dates[-1]}' if len(dates) > 1 else ''}, {cpu}, {precision}: "
-                       + ", ".join(f"git {commit} ({n} run{'s' * (n > 1)})"
-                                   for commit, n in commits[(cpu, precision)].items()))
+    """The CPUs and precisions the results were measured with, one clause each with its number of runs,
+    numbered [1], [2] ... where there are several (the times in the table are only comparable within one
+    clause, and say which). The commits and dates of each run are in the records, not on the page."""
+    runs = collections.Counter(_place(r) for r in found)
+    clauses = [f"{cpu}, {precision} ({runs[(cpu, precision)]} run{'s' * (runs[(cpu, precision)] > 1)})"
+               for cpu, precision in _places(found)]
     return "; ".join(clauses if len(clauses) == 1 else (f"[{i}] {c}" for i, c in enumerate(clauses, 1)))
+
+
+def versions(found: list[dict[str, Any]]) -> str:
+    """python's and the libraries' versions on the machine line of the latest run that recorded one."""
+    lines = [r for r in found if r.get("machine")]
+    if not lines:
+        return "unrecorded"
+    line = max(lines, key=lambda r: r.get("finished", 0.0))["machine"]
+    tail = line[line.find("python "):] if "python " in line else line
+    return re.sub(r"fetch [^,]*, ", "", tail)
 
 
 def _seconds(rows: list[dict[str, Any]], places: list[tuple[str, str]]) -> str:
@@ -177,16 +182,13 @@ def record(records: pathlib.Path, result: dict[str, Any]) -> None:
 
 
 def table(found: list[dict[str, Any]]) -> str:
-    """This benchmark's section of docs/learning_curves.md from the results `found` ("" without any)."""
+    """This benchmark's section of `PAGE` from the results `found` ("" without any)."""
     if not found:
         return ""
     lines = [HEADING, "",
-             "Written by `benchmarks/pixel_curves.py` (see its docstring). The demos: `benchmarks.mission --inputs "
-             "pixels`' stand-in, 10 pad demos, `gym-fetch generate` from every start with front and wrist images at "
-             "84 x 84 drawn fast; each run is `gym-fetch train` with its defaults on the first N of them, or all of "
-             "mask/train (their count after \"of\"; pixels: `--inputs pixels`, the `cnn-chunk` policy; state: the "
-             f"task's `auto` policy), then {EPISODES} evaluation episodes on unseen seeds. Success %, mean ± std "
-             "over the training seeds done (in brackets each seed's own, in seed order); the last column is the "
+             "Written by `benchmarks/pixel_curves.py`. Success % over "
+             f"{EPISODES} unseen evaluation seeds, mean ± std over the training seeds done (in brackets each seed's "
+             "own, in seed order); \"all\" is all of mask/train (their count after \"of\"). The last column is the "
              "mean training wall time of a run on 2 cores (on each machine, numbered as below, where they differ).", "",
              "| task | sees | " + " | ".join(f"{n or 'all'} demos" for n in DEMOS)
              + " | train [s] per run |", "|---|---|" + "---|" * (len(DEMOS) + 1)]
@@ -202,7 +204,9 @@ def table(found: list[dict[str, Any]]) -> str:
                 cells.append(_cell(done, n))
             lines.append(f"| `{task}` | {inputs} ({rows[0]['policy']}) | " + " | ".join(cells)
                          + f" | {_seconds(rows, places)} |")
-    lines += ["", f"Measured on 2 cores: {where_run(found)}."]
+    lines += ["", f"Machines (2 cores each): {where_run(found)}.", "",
+              f"Versions (the latest run): {versions(found)}.", "",
+              f"Measured on {max(r.get('date', 'undated') for r in found)} (the latest run)."]
     return "\n".join(lines) + "\n"
 
 
@@ -226,12 +230,12 @@ def with_section(text: str, heading: str, new: str) -> str:
 
 
 def publish(found: list[dict[str, Any]], docs: pathlib.Path) -> None:
-    page = docs / "learning_curves.md"
+    page = docs / PAGE
     text = table(found)
     if not text:
         return
     tmp = page.with_name(f".{page.name}.tmp")
-    tmp.write_text(with_section(page.read_text() if page.exists() else "# Learning curves\n", HEADING, text))
+    tmp.write_text(with_section(page.read_text() if page.exists() else "# Pixel curves\n", HEADING, text))
     tmp.replace(page)
 
 
@@ -243,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="where the trained runs go: <results>/runs (default %(default)s)")
     p.add_argument("--records", default=str(RECORDS), help="the results file (default: the repo's %(default)s)")
     p.add_argument("--docs", default=str(pathlib.Path(__file__).resolve().parents[1] / "docs"),
-                   help="where learning_curves.md is (default: the repo's docs/)")
+                   help=f"the docs folder holding {PAGE} (default: the repo's docs/)")
     p.add_argument("--seeds", default=",".join(map(str, SEEDS)), help="training seeds (default %(default)s)")
     p.add_argument("--limit", type=int, default=0, help="stop after this many new runs (default 0: all)")
     args = p.parse_args(argv)

@@ -35,7 +35,7 @@ import subprocess
 import sys
 import time
 
-from tests.procs import alive, children  # the process probes the tests use
+from fetch.testing.procs import alive, children
 
 STOPS = ("kill", "term", "group-int", "double-int", "closed-stdout", "full-stdout")
 GRACE = 10.0

@@ -2,7 +2,7 @@
 
 The puck at rest in front of the shoulder and 0.15 m to the side; TRIALS strikes of each size along x
 and the diagonal, with Gaussian noise on every action (line-up and strike, as
-benchmarks/expert_success.py adds it). Its result (docs/benchmarks.md, "Why no striking expert
+benchmarks/expert_success.py adds it). Its result (docs/results/expert_success.md, "Why no striking expert
 reaches 80 % under action noise 0.1") is why that bar was left unmet.
 
     .venv/bin/python -m experiments.slide_spread --trials 100        # ~6 min

@@ -35,7 +35,7 @@ def env_id(request: pytest.FixtureRequest) -> str:
 
 @pytest.fixture
 def pad(monkeypatch: pytest.MonkeyPatch) -> Iterator[object]:
-    """An Xbox-layout virtual pad (tests/vpad.py); SDL is process-global, so pygame is shut down after."""
+    """An Xbox-layout virtual pad (fetch.testing.vpad); SDL is process-global, so pygame is shut down after."""
     import pygame
 
     import vpad

@@ -14,7 +14,7 @@ import time
 import pytest
 
 from fetch.dataset import open_dataset, validate
-from fetch.dataset.replay import check_demo
+from fetch.dataset.replay.check import check_demo
 
 
 def collector(out: pathlib.Path, *extra: str, env: str = "Reach-v2") -> list[str]:

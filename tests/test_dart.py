@@ -12,7 +12,7 @@ import pytest
 
 from fetch.cli import main
 from fetch.dataset import open_dataset
-from fetch.dataset.replay import check_demo
+from fetch.dataset.replay.check import check_demo
 from fetch.dataset.schema import OBS_KEYS, check_arrays
 from fetch.experts import make_expert
 from fetch.learn.data import load_demos

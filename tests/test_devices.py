@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import sys
 import textwrap
@@ -37,6 +38,9 @@ def test_a_complete_declaration_is_accepted() -> None:
     ({"build": "not a function"}, "build must be a function"),
     ({"add_arguments": 3}, "add_arguments"),
     ({"name": "space mouse"}, "name must be a word"),
+    ({"add_arguments": lambda p: None}, "go together"),
+    ({"options": dict}, "options must be a dataclass"),
+    ({"legend_from": "takeover_with"}, "legend_from must name a field"),
 ])
 def test_a_bad_declaration_fails_when_it_is_made(changes: dict[str, object], problem: str) -> None:
     with pytest.raises(TypeError, match=problem):
@@ -65,6 +69,28 @@ def test_the_cli_offers_exactly_the_registered_devices_and_their_flags() -> None
     assert "policy" in DEVICE_NAMES  # registered by fetch.learn.device, a layer above
     dests = {a.dest for a in collect._actions}
     assert {"policy", "scripted_json", "profile", "frame"} <= dests  # each device's own flags
+
+
+def test_every_device_option_is_a_collect_flag() -> None:
+    """A device reads its flags as typed options, one field per flag: each field is a flag `collect` declares."""
+    parser = build_parser()
+    collect = next(a for a in parser._subparsers._group_actions  # type: ignore[union-attr]
+                   if isinstance(a, argparse._SubParsersAction)).choices["collect"]
+    dests = {a.dest for a in collect._actions}
+    for kind in KINDS:
+        if kind.options is not None:
+            fields = {f.name for f in dataclasses.fields(kind.options)}
+            assert fields <= dests, f"{kind.name}: {sorted(fields - dests)} are no collect flags"
+
+
+def test_a_device_gets_its_options_or_their_defaults() -> None:
+    from fetch.teleop.devices import DeviceContext
+    from fetch.teleop.expert import EXPERT_NOISE, ExpertOptions
+    from fetch.teleop.scripted import ScriptedOptions
+
+    context = DeviceContext(env=None, viewer=None, yaw=None, options=(ScriptedOptions("events.json"),))
+    assert context.options_for(ScriptedOptions).scripted_json == "events.json"
+    assert context.options_for(ExpertOptions) == ExpertOptions(EXPERT_NOISE, None)
 
 
 @pytest.mark.parametrize("kind", KINDS, ids=lambda k: k.name)

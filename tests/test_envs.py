@@ -223,7 +223,8 @@ def test_the_steps_scalar_check_gives_the_general_rules_numbers(dtype: Any) -> N
     """`checked_action` (FetchEnv.step's path) against `checked_actions` + `action_rule` (the vector
     env's): the same clipped action, of the same dtype, and the same move and grip, bit for bit."""
     rng = np.random.default_rng(0)
-    edges = np.array([[-1.0, 1.0, -0.0, 0.0], [1.5, -7.0, 1e-30, -1e-30], [0.999999, -0.3333333, 0.05, 2.0], [1e-40, -3e-39, 1e-7, -1e-45]])
+    edges = np.array([[-1.0, 1.0, -0.0, 0.0], [1.5, -7.0, 1e-30, -1e-30], [0.999999, -0.3333333, 0.05, 2.0],
+                      [1e-40, -3e-39, 1e-7, -1e-45]])  # the last: float32 subnormals
     for action in np.concatenate([edges, rng.uniform(-1.5, 1.5, (300, 4))]).astype(dtype):
         clipped, move, grip = checked_action(action)
         want = checked_actions(action)

@@ -19,8 +19,8 @@ import pytest
 
 from fetch.cli import main
 from fetch.dataset import open_dataset
-from fetch.dataset.export import export_minari, export_npz
-from fetch.errors import DatasetError
+from fetch.dataset.exports.export import export_minari, export_npz
+from fetch.errors import DatasetError, FetchError
 
 ENV = "Drawer-open-v2"
 MAX_STEPS = "60"
@@ -216,13 +216,28 @@ def test_cli_export_bad_input_is_a_clear_error(dataset: pathlib.Path, minari_roo
 def test_every_exporter_reads_options_the_subcommand_has() -> None:
     """The registry and the parser agree: every option an exporter reads or needs is one of `export`'s."""
     from fetch.cli import _parser
-    from fetch.dataset.exporters import EXPORTERS
+    from fetch.dataset.exports.exporters import EXPORTERS, OPTIONS, ExportRequest
 
     export = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["export"]
     dests = {a.dest for a in export._actions}
     assert {e.name for e in EXPORTERS} == set(next(a for a in export._actions if a.dest == "to").choices)
     for e in EXPORTERS:
         assert set(e.reads) | set(e.needs) <= dests, e.name
+    # `gym-fetch export` builds its request from the flags of the fields' names
+    fields = {f.name for f in dataclasses.fields(ExportRequest)}
+    assert fields <= dests and set(OPTIONS) <= fields
+
+
+def test_an_export_request_is_checked_without_a_command_line(dataset: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """The library takes a typed request: a missing or foreign option is refused before anything is written."""
+    from fetch.dataset.exports.exporters import ExportRequest, export
+
+    with pytest.raises(FetchError, match="needs --out"):
+        export(ExportRequest(str(dataset), "npz"))
+    with pytest.raises(FetchError, match="--author is for --to minari"):
+        export(ExportRequest(str(dataset), "npz", out=str(tmp_path / "npz"), author="me"))
+    assert not (tmp_path / "npz").exists()
+    assert "as npz files in" in export(ExportRequest(str(dataset), "npz", out=str(tmp_path / "npz")))
 
 
 def test_missing_minari_names_the_extra(dataset: pathlib.Path, minari_root: pathlib.Path,
@@ -351,7 +366,7 @@ def test_an_image_export_says_how_to_get_the_images_the_recovered_env_does_not_g
 
 def test_a_failed_export_leaves_the_previous_dataset_as_it_was(dataset: pathlib.Path, minari_root: pathlib.Path,
                                                                monkeypatch: pytest.MonkeyPatch) -> None:
-    import fetch.dataset.export as export
+    import fetch.dataset.exports.export as export
 
     export_minari(dataset, "fetch/drawer-open/expert-v0")
     before = sorted(p.relative_to(minari_root) for p in minari_root.rglob("*"))
@@ -388,7 +403,7 @@ def test_a_disk_without_room_is_refused_before_anything_is_written(
         capsys: pytest.CaptureFixture[str]) -> None:
     """Minari's HDF5 writes on a full disk ended in a segfault or an HDF5 traceback: the export checks the
     free space against what it will write first, and the dataset already under the id stays as it was."""
-    import fetch.dataset.export as export
+    import fetch.dataset.exports.export as export
 
     export_minari(dataset, "fetch/drawer-open/expert-v0")
     before = _tree(minari_root)
@@ -482,7 +497,7 @@ def test_a_dataset_id_minari_cannot_read_back_is_refused(dataset: pathlib.Path, 
 def test_the_dataset_id_rule_is_minaris_with_a_version_and_no_empty_part() -> None:
     from minari.dataset.minari_dataset import DATASET_ID_RE
 
-    from fetch.dataset.export import _DATASET_ID
+    from fetch.dataset.exports.export import _DATASET_ID
 
     parts = ["a", "ab", "a/b", "t_", "-", "--", "é", "a//b", "a/", "/a", "x-v0", ""]
     for namespace in parts:

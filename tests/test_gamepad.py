@@ -19,6 +19,8 @@ import pytest
 
 import fetch  # noqa: F401  (registers the ids)
 import vpad
+from fetch.commands import gamepad as gamepad_command
+from fetch.commands.flags import options_of
 from fetch.errors import FetchError
 from fetch.teleop.devices import Command
 from fetch.teleop.gamepad import (
@@ -26,13 +28,12 @@ from fetch.teleop.gamepad import (
     GamepadConfig,
     GamepadDevice,
     Mapper,
+    PadFlags,
     PadState,
     _Pad,
-    add_gamepad_parser,
     calibrate,
-    config_from_args,
+    config_from_flags,
     radial_deadzone,
-    run_gamepad_tool,
 )
 
 UP = -1.0  # SDL's stick y points down
@@ -204,17 +205,23 @@ def test_missing_profile_is_a_fetch_error(tmp_path: Path) -> None:
 
 def _args(*argv: str) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
-    add_gamepad_parser(parser.add_subparsers())
+    gamepad_command.add_parser(parser.add_subparsers())
     return parser.parse_args(["gamepad", *argv])
+
+
+def _flags(*argv: str) -> PadFlags:
+    """The pad's flags as `gym-fetch gamepad` parses them."""
+    flags: PadFlags = options_of(PadFlags, _args(*argv))
+    return flags
 
 
 def test_flags_override_the_profile_but_defaults_do_not(tmp_path: Path) -> None:
     path = tmp_path / "pad.json"
     GamepadConfig(deadzone=0.3, invert_y=False, button_x=5, axis_ly=4).save_profile(path)
-    config = config_from_args(_args("--profile", str(path), "--button-x", "7", "--pos-scale", "0.5"))
+    config = config_from_flags(_flags("--profile", str(path), "--button-x", "7", "--pos-scale", "0.5"))
     assert (config.deadzone, config.invert_y, config.pos_scale) == (0.3, False, 0.5)
     assert (config.button_x, config.axis_ly) == (7, 4)
-    seed = config_from_args(_args("--axis-lt", "2", "--no-invert-y"))
+    seed = config_from_flags(_flags("--axis-lt", "2", "--no-invert-y"))
     assert seed.axis("lt") == 2 and seed.axis("rt") == "righttrigger" and seed.invert_y is False
 
 
@@ -370,7 +377,7 @@ def test_raw_index_beyond_the_pad_is_an_error(pad: vpad.VirtualPad) -> None:
 def test_live_view_prints_what_the_pad_sends(pad: vpad.VirtualPad, capsys: pytest.CaptureFixture[str]) -> None:
     pad.set_stick(1.0, 0.0)
     start = time.monotonic()
-    assert run_gamepad_tool(_args("--seconds", "0.3")) == 0
+    assert gamepad_command.run(_args("--seconds", "0.3")) == 0
     assert time.monotonic() - start < 5
     out = capsys.readouterr().out
     assert "Virtual Controller (SDL game controller)" in out
@@ -385,7 +392,7 @@ def test_live_view_stops_on_start(pad: vpad.VirtualPad, capsys: pytest.CaptureFi
     presser = threading.Thread(target=press_start)
     presser.start()
     start = time.monotonic()
-    assert run_gamepad_tool(_args("--seconds", "20")) == 0
+    assert gamepad_command.run(_args("--seconds", "20")) == 0
     presser.join()
     assert time.monotonic() - start < 10
     assert "quit" in capsys.readouterr().out

@@ -16,7 +16,7 @@ import pytest
 from fetch.cli import main
 from fetch.dataset import open_dataset
 from fetch.dataset.demo_file import IMAGE_CHUNK
-from fetch.dataset.frames import StateRenderer
+from fetch.dataset.render.frames import StateRenderer
 from fetch.dataset.validation import require_valid
 from fetch.dataset.writer import DatasetWriter
 from fetch.generate import attempt, run

@@ -8,13 +8,13 @@ import pathlib
 import numpy as np
 import pytest
 
-import operators
 from fetch.cli import main
 from fetch.dataset import open_dataset
 from fetch.dataset.habits import demo_flags, first_success, observation_changes, runs, still_steps
 from fetch.generate.segments import tidy_steps
 from fetch.generate.sources import load_sources
 from fetch.tasks.subtasks import Frame
+from fetch.testing import operators
 
 
 def test_still_steps_are_the_ones_that_change_nothing() -> None:

@@ -222,7 +222,7 @@ def test_two_tools_never_edit_one_merged_file_at_once(reach_demos: pathlib.Path,
     """render-obs and split on one merged file at the same moment shared a temporary file and no lock
     (5 of 6 crashed; once a demo's images leaked into the file): the second is refused while the first
     edits, and goes ahead once it is done."""
-    from fetch.dataset.durable import editing
+    from fetch.dataset.holding import editing
 
     merged = tmp_path / "all.hdf5"
     other = tmp_path / "other"

@@ -16,7 +16,7 @@ from gymnasium.vector import SyncVectorEnv
 import fetch
 from fetch import rendering
 from fetch.dataset import schema
-from fetch.dataset.frames import StateRenderer
+from fetch.dataset.render.frames import StateRenderer
 from fetch.errors import FetchError, UnknownNameError
 
 TWO = ("front", "wrist")

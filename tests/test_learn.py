@@ -19,6 +19,7 @@ import pytest
 from fetch.cli import main
 from fetch.errors import FetchError
 from fetch.learn.evaluate import eval_seeds, wilson
+from fetch.testing import operators
 
 TINY = ["--hidden", "32", "--batch-size", "64"]
 """A small network: these tests check the pipeline, the benchmark checks what it learns."""
@@ -314,7 +315,7 @@ def test_eval_writes_videos(torch, reach: pathlib.Path, tmp_path) -> None:  # no
     assert _train(reach, tmp_path / "run", "--steps", "20") == 0
     assert main(["eval", str(tmp_path / "run"), "--episodes", "2", "--video", str(tmp_path / "videos"),
                  "--videos", "1"]) == 0
-    from fetch.dataset.video import read_video
+    from fetch.dataset.render.video import read_video
 
     (path,) = (tmp_path / "videos").glob("*.mp4")
     frames, fps = read_video(path)
@@ -512,7 +513,6 @@ def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  
     """Demos recorded through SDL's game-controller path train a policy that then runs end to end."""
     import dataclasses
 
-    import operators
     from fetch.dataset import open_dataset
     from fetch.experts import make_expert
     from fetch.teleop.gamepad import GamepadConfig, GamepadDevice
@@ -520,7 +520,7 @@ def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  
 
     config = CollectConfig(env_id="Reach-v2", out=str(tmp_path / "human"), device="gamepad", render="none",
                            control_hz=0, success_hold_steps=3, max_steps=100, episodes=4)
-    # A person steering the grip site to the goal: Reach's expert on the pad, a steady hand (tests/operators.py).
+    # A person steering the grip site to the goal: Reach's expert on the pad, a steady hand (fetch.testing.operators).
     steady = dataclasses.replace(operators.STANDIN, noise=0.0)
     operator = operators.Operator(pad, GamepadDevice(GamepadConfig(deadzone=0.02)), make_expert("Reach-v2"), steady)
     Session(config, operator, log=lambda _: None).run()
@@ -533,14 +533,11 @@ def test_from_the_pad_to_a_policy(torch, pad, tmp_path: pathlib.Path) -> None:  
 def test_train_takes_the_steps_measured_for_the_task_unless_told(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     import fetch.learn
-    import fetch.tasks
-    from fetch.learn.settings import task_training
-    from fetch.tasks import Training, registration
+    from fetch.learn.recipes import RECIPES, Training, task_training
 
     assert task_training("Bin-pick-v2").steps == 10000 and task_training("Reach-v2").steps == Training().steps == 5000
     # A measured exception, small enough for a test:
-    reach_line = registration("Reach-v2")._replace(training=Training(steps=30))
-    monkeypatch.setitem(fetch.tasks._BY_ENV_ID, "Reach-v2", reach_line)
+    monkeypatch.setitem(RECIPES, "Reach-v2", Training(steps=30))
     assert _train(reach, tmp_path / "auto") == 0
     assert fetch.learn.load(tmp_path / "auto").trained_steps == 30
     assert _train(reach, tmp_path / "told", "--steps", "20") == 0
@@ -550,6 +547,7 @@ def test_train_takes_the_steps_measured_for_the_task_unless_told(torch, reach: p
 def test_every_task_trains_a_registered_kind_and_every_kind_is_complete(torch) -> None:  # noqa: ANN001
     from fetch.learn.kinds import KINDS, PolicySettings, kind
     from fetch.learn.policies import Kind, implementation
+    from fetch.learn.recipes import task_training
     from fetch.tasks import REGISTRATIONS
 
     for k in KINDS:
@@ -558,9 +556,10 @@ def test_every_task_trains_a_registered_kind_and_every_kind_is_complete(torch) -
         seen = {"cameras": ("front",)} if k.inputs == "pixels" else {}  # a pixel kind needs a camera
         assert all(getattr(PolicySettings.of(k.name, **seen), n) == v for n, v in k.defaults.items())
     for r in REGISTRATIONS:
-        assert kind(r.training.policy).name == r.training.policy, r.env_id
-        assert r.task.mirrors or not r.training.mirror, f"{r.env_id}: auto mirrors symmetric tasks only"
-        assert r.training.chunk is None or "chunk" in kind(r.training.policy).own, r.env_id
+        recipe = task_training(r.env_id)
+        assert kind(recipe.policy).name == recipe.policy, r.env_id
+        assert r.task.mirrors or not recipe.mirror, f"{r.env_id}: auto mirrors symmetric tasks only"
+        assert recipe.chunk is None or "chunk" in kind(recipe.policy).own, r.env_id
 
 
 def test_the_python_api_trains_what_the_command_trains(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
@@ -580,8 +579,8 @@ def test_the_python_api_trains_what_the_command_trains(torch, reach: pathlib.Pat
 
 def test_auto_trains_the_policy_measured_best_for_the_task(torch, reach: pathlib.Path, tmp_path) -> None:  # noqa: ANN001
     from fetch.learn.data import velocity_columns
+    from fetch.learn.recipes import task_training
     from fetch.learn.runtime import load
-    from fetch.learn.settings import task_training
 
     assert task_training("Drawer-close-v2").policy == "mlp-chunk" and task_training("Reach-v2").policy == "gru"
     assert _train(reach, tmp_path / "run", "--steps", "20") == 0  # --policy auto
@@ -629,10 +628,9 @@ def test_mirror_on_a_task_that_is_not_symmetric_is_refused_before_anything_is_wr
 @pytest.mark.parametrize("style", ["standin", "rests", "slow", "pauses", "regrasp", "gripper", "side", "person"])
 def test_every_operators_style_goes_the_whole_path(torch, pad, style: str, tmp_path: pathlib.Path,  # noqa: ANN001
                                                    capsys) -> None:  # noqa: ANN001
-    """Pad demos by each stand-in operator (tests/operators.py) -> generate -> train -> eval, tiny: the
+    """Pad demos by each stand-in operator (fetch.testing.operators) -> generate -> train -> eval, tiny: the
     commands are the same for every style; the run knows the horizon its demos need, and eval reports
     both it and the registered one."""
-    import operators
     from fetch.learn.data import load_demos
     from fetch.learn.runtime import load
 

@@ -20,9 +20,10 @@ pytest.importorskip("av")
 
 import fetch  # noqa: E402
 from fetch.cli import main  # noqa: E402
-from fetch.dataset import lerobot, open_dataset  # noqa: E402
-from fetch.dataset.frames import StateRenderer  # noqa: E402
-from fetch.dataset.video import read_video  # noqa: E402
+from fetch.dataset import open_dataset  # noqa: E402
+from fetch.dataset.exports import lerobot  # noqa: E402
+from fetch.dataset.render.frames import StateRenderer  # noqa: E402
+from fetch.dataset.render.video import read_video  # noqa: E402
 
 SIZE = 64
 
@@ -288,7 +289,7 @@ def test_a_camera_export_s_state_is_the_robot_s_own_readings(env_id: str) -> Non
     is not handed the answer), the same 10 values on every task; without, the whole observation vector."""
     import gymnasium as gym
 
-    from fetch.dataset.lerobot import ROBOT_PARTS, features, state_index, state_layout
+    from fetch.dataset.exports.lerobot import ROBOT_PARTS, features, state_index, state_layout
 
     env = gym.make(env_id)
     layout = dict(env.unwrapped.observation_layout)  # type: ignore[attr-defined]

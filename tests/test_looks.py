@@ -18,7 +18,7 @@ import fetch
 from fetch import looks as looks_module
 from fetch.cli import main
 from fetch.dataset import open_dataset
-from fetch.dataset.frames import StateRenderer
+from fetch.dataset.render.frames import StateRenderer
 from fetch.dataset.validation import require_valid
 from fetch.errors import FetchError
 from fetch.looks import Looks, painted_things

@@ -19,14 +19,15 @@ def extras() -> set[str]:
 def test_every_install_command_names_the_source_tree_and_a_real_extra() -> None:
     """gym-fetch-v2 is not on PyPI: `pip install "gym-fetch-v2[train]"` fails from a clone ("No matching
     distribution"). Every command the README, the docs and the errors give installs from the source tree."""
-    import fetch.dataset.export
-    import fetch.dataset.lerobot
+    import fetch.dataset.exports.export
+    import fetch.dataset.exports.lerobot
     import fetch.learn
     from fetch.errors import install_hint
 
     texts = {p.name: p.read_text() for p in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]}
-    texts.update({"TORCH_INSTALL": fetch.learn.TORCH_INSTALL, "MINARI_INSTALL": fetch.dataset.export.MINARI_INSTALL,
-                  "lerobot INSTALL": fetch.dataset.lerobot.INSTALL, "install_hint": install_hint("video")})
+    texts.update({"TORCH_INSTALL": fetch.learn.TORCH_INSTALL,
+                  "MINARI_INSTALL": fetch.dataset.exports.export.MINARI_INSTALL,
+                  "lerobot INSTALL": fetch.dataset.exports.lerobot.INSTALL, "install_hint": install_hint("video")})
     known = extras()
     seen = 0
     for where, text in texts.items():

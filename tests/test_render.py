@@ -113,7 +113,7 @@ def test_a_render_pool_removes_the_directories_that_killed_processes_left(tmp_pa
     import fcntl
     import tempfile
 
-    from fetch.dataset.frames import DIR_PREFIX, LOCK_NAME, RenderPool
+    from fetch.dataset.render.frames import DIR_PREFIX, LOCK_NAME, RenderPool
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     stale, running = tmp_path / f"{DIR_PREFIX}abc", tmp_path / f"{DIR_PREFIX}def"
@@ -156,7 +156,7 @@ def test_render_ahead_closed_early_leaves_cancelling_its_jobs_to_the_pool(monkey
     import concurrent.futures
     import threading
 
-    from fetch.dataset.render_ahead import render_ahead
+    from fetch.dataset.render.render_ahead import render_ahead
 
     callers: list[str] = []
     cancel = concurrent.futures.Future.cancel

@@ -8,9 +8,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-import vpad  # tests/vpad.py
+import vpad  # fetch.testing.vpad, re-exported by tests/vpad.py
 from fetch.dataset import open_dataset, validate
-from fetch.dataset.replay import check_demo
+from fetch.dataset.replay.check import check_demo
 from fetch.teleop.devices import REWIND_REPEAT, REWIND_STEPS, Command
 from fetch.teleop.gamepad import GamepadConfig, GamepadDevice
 from fetch.teleop.session import CollectConfig, Session

@@ -12,11 +12,11 @@ import minari
 import numpy as np
 import pytest
 
-import vpad  # tests/vpad.py
+import vpad  # fetch.testing.vpad, re-exported by tests/vpad.py
 from fetch.dataset import open_dataset, validate
-from fetch.dataset.export import export_minari, export_npz
+from fetch.dataset.exports.export import export_minari, export_npz
 from fetch.dataset.reader import summarize, takeovers
-from fetch.dataset.replay import check_demo
+from fetch.dataset.replay.check import check_demo
 from fetch.learn.takeover import HAND_BACK, TakeoverDevice
 from fetch.teleop.devices import Command
 from fetch.teleop.gamepad import GamepadConfig, GamepadDevice
@@ -153,7 +153,7 @@ def test_the_labels_go_into_every_export(corrected: tuple[pathlib.Path, Takeover
     np.testing.assert_array_equal(episode.infos["policy_action"][1:], arrays["policy_actions"])
     pq = pytest.importorskip("pyarrow.parquet")
     pytest.importorskip("av")
-    from fetch.dataset.export import export_lerobot
+    from fetch.dataset.exports.export import export_lerobot
 
     export_lerobot(out, "local/corrected", tmp_path / "lerobot")
     table = pq.read_table(tmp_path / "lerobot" / "data" / "chunk-000" / "file-000.parquet")

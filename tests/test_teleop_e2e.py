@@ -7,7 +7,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-import vpad  # tests/vpad.py
+import vpad  # fetch.testing.vpad, re-exported by tests/vpad.py
 from fetch.dataset import open_dataset, validate
 from fetch.teleop.devices import Command
 from fetch.teleop.gamepad import GamepadConfig, GamepadDevice

@@ -18,8 +18,8 @@ import pytest
 from fetch.cli import main
 from fetch.dataset import open_dataset, schema, validate
 from fetch.dataset.background import BackgroundWriter
-from fetch.dataset.frames import StateRenderer
-from fetch.dataset.video import read_video
+from fetch.dataset.render.frames import StateRenderer
+from fetch.dataset.render.video import read_video
 from procs import children, command_line
 from robomimic_rules import assert_robomimic_loadable
 
@@ -223,7 +223,7 @@ def test_render_obs_failure_leaves_the_dataset_as_it_was(plain: pathlib.Path,
 def test_render_obs_failing_midway_leaves_the_dataset_as_it_was(plain: pathlib.Path,
                                                                  capsys: pytest.CaptureFixture[str],
                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
-    from fetch.dataset import render_obs
+    from fetch.dataset.replay import render_obs
     from fetch.errors import DatasetError
 
     store = render_obs._store
@@ -398,7 +398,9 @@ def test_images_a_stopped_session_left_unrendered_are_rendered_by_the_next(made:
 SWALLOWED_IN_TOOL = """
 import os, signal, sys, weakref
 from fetch import cli
-from fetch.dataset import edit, export, npz, render_obs
+from fetch.dataset import edit, npz
+from fetch.dataset.exports import export
+from fetch.dataset.replay import render_obs
 
 class Thing:
     pass
@@ -451,7 +453,7 @@ def test_a_stop_whose_exception_python_swallowed_still_stops_the_tool_and_change
 KILLED_BETWEEN_RENAMES = """
 import os, signal, sys
 from fetch import cli
-from fetch.dataset import durable
+from fetch import _durable as durable
 
 replaced = []
 real = os.replace
@@ -507,6 +509,6 @@ def test_a_full_stdout_is_one_line_and_the_work_is_done(plain: pathlib.Path, tmp
 def test_every_recording_format_has_a_reader() -> None:
     """`info` and `replay` read through `open_recording`: each format `collect --format` writes has a reader."""
     from fetch.dataset.formats import FORMATS
-    from fetch.dataset.recordings import READERS
+    from fetch.dataset.replay.recordings import READERS
 
     assert {r.format for r in READERS} == set(FORMATS)

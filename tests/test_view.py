@@ -18,7 +18,7 @@ pytest.importorskip("PIL")
 
 from fetch.cli import main  # noqa: E402
 from fetch.dataset import open_dataset  # noqa: E402
-from fetch.dataset.video import read_video  # noqa: E402
+from fetch.dataset.render.video import read_video  # noqa: E402
 
 SIZE = 64
 

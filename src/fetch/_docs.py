@@ -5,7 +5,8 @@ from __future__ import annotations
 import inspect
 
 from fetch import observation as ob
-from fetch.tasks import REGISTRATIONS
+from fetch.learn.recipes import task_training
+from fetch.tasks import ENV_IDS, REGISTRATIONS
 
 
 def _first_line(obj: object) -> str:
@@ -87,14 +88,14 @@ def dataset_table() -> str:
 
 
 def training_table() -> str:
-    """What `gym-fetch train --policy auto` trains on each task: its line's `Training` in the task table."""
+    """What `gym-fetch train --policy auto` trains on each task: its recipe (`fetch.learn.recipes`)."""
     rows = ["| id | policy | steps | ensemble | goal offsets | velocities | mirror images | chunk |",
             "|---|---|---|---|---|---|---|---|"]
-    for reg in REGISTRATIONS:
-        t = reg.training
+    for env_id in ENV_IDS:
+        t = task_training(env_id)
         chunk = "the kind's" if t.chunk is None else str(t.chunk)
         velocities = "seen" if t.velocities else "not seen"
-        rows.append(f"| `{reg.env_id}` | {t.policy} | {t.steps} | {t.members} | {'yes' if t.goal_offsets else 'no'} "
+        rows.append(f"| `{env_id}` | {t.policy} | {t.steps} | {t.members} | {'yes' if t.goal_offsets else 'no'} "
                     f"| {velocities} | {'yes' if t.mirror else 'no'} | {chunk} |")
     return "\n".join(rows)
 

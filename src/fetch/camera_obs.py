@@ -41,7 +41,7 @@ def check_cameras(model: mujoco.MjModel, cameras: Sequence[str] | None, image_si
 
 class CameraImages:
     """Renders `cameras` of one model at `size` x `size` [px] for the observation dict, as the dataset's
-    images are rendered (`dataset.frames.StateRenderer`: the same renderer, settings, size and `quality`,
+    images are rendered (`dataset.render.frames.StateRenderer`: the same renderer, settings, size and `quality`,
     `rendering.IMAGE_QUALITIES`), so an image here equals the one `collect --cameras` or `render-obs` records
     for the same state. The GL renderer is made on first use and released by `close`."""
 

@@ -22,20 +22,23 @@ def _version() -> str:
 
 
 SUBCOMMANDS: tuple[str, ...] = (
-    "fetch.collect:add_collect_parser",
-    "fetch.dataset.recordings:add_info_parser",
-    "fetch.dataset.replay:add_replay_parser",
-    "fetch.dataset.render_obs:add_render_obs_parser",
-    "fetch.dataset.edit:add_edit_parsers",
-    "fetch.dataset.exporters:add_export_parser",
-    "fetch.teleop.gamepad:add_gamepad_parser",
-    "fetch.learn.cli:add_learn_parsers",
-    "fetch.dataset.view:add_view_parser",
-    "fetch.generate.cli:add_generate_parser",
+    "fetch.commands.collect:add_parser",
+    "fetch.commands.info:add_parser",
+    "fetch.commands.replay:add_parser",
+    "fetch.commands.render_obs:add_parser",
+    "fetch.commands.merge:add_parser",
+    "fetch.commands.split:add_parser",
+    "fetch.commands.export:add_parser",
+    "fetch.commands.gamepad:add_parser",
+    "fetch.commands.train:add_parser",
+    "fetch.commands.evaluate:add_parser",
+    "fetch.commands.view:add_parser",
+    "fetch.commands.generate:add_parser",
+    "fetch.commands.subtasks:add_parser",
 )
-"""Every subcommand, declared next to its code by a function that adds its parser (`run` set to the function
-that runs it), in `gym-fetch --help`'s order. What a command needs heavy (torch, PyAV, minari, pygame) is
-imported only when it runs."""
+"""Every subcommand, in `gym-fetch --help`'s order: a function that adds its parser (`run` set to the function
+that runs it), in the command layer (`fetch.commands`, one module per subcommand). What a command needs heavy
+(torch, PyAV, minari, pygame) is imported only when it runs."""
 
 
 def _parser() -> argparse.ArgumentParser:

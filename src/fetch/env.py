@@ -199,7 +199,7 @@ class FetchEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                            goal_distance(achieved_goal, desired_goal))
 
     def _observe(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        # The sensors are current: mj_step1 (step) or mj_forward (reset, set_state) computed
+        # The sensors are current: `present` (step) or mj_forward (reset, set_state) computed
         # them from the present state, so the observation is a function of the state alone.
         d = self.data
         vector = self._observer(d)

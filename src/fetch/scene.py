@@ -70,7 +70,7 @@ ROOM_SOLREF = (2 * PHYSICS_DT, 1.0)
 """Contacts in our room (floor, table, furniture, objects; the robot's own geoms keep theirs): a
 time constant of two physics steps, the stiffest MuJoCo integrates stably (its default: 0.02 s).
 With the default, a block the hand drives into the table or a bin wall sank up to 37 mm into it;
-with these, <= 5 mm (benchmarks/bench_abuse.py, docs/benchmarks.md)."""
+with these, <= 5 mm (benchmarks/bench_abuse.py, docs/results/bench_abuse.md)."""
 ROOM_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 """... and an impedance near 1 at any depth (MuJoCo's default: 0.9 to 0.95), so they barely yield."""
 MUJOCO_SOLREF, MUJOCO_SOLIMP = (0.02, 1.0), (0.9, 0.95, 0.001, 0.5, 2.0)

@@ -12,9 +12,8 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from fetch._durable import temporary, why
+from fetch._durable import lock_directory, temporary, unlock_directory, why
 from fetch.dataset import schema
-from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
 from fetch.errors import DatasetError
 

@@ -6,7 +6,6 @@ and hand to training code. `split` rewrites only `mask/train` and `mask/valid`.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import dataclasses
 import json
@@ -18,12 +17,12 @@ from typing import Any
 import h5py
 import numpy as np
 
-from fetch._durable import NO_ROOM, replacing, why
+from fetch._durable import NO_ROOM, replacing, rewritten, why
 from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.dirs import require_apart
-from fetch.dataset.durable import editing, rewritten
-from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset, resolve
+from fetch.dataset.holding import editing
+from fetch.dataset.reader import Dataset, open_dataset, resolve
 from fetch.dataset.validation import require_valid
 from fetch.dataset.writer import package_versions
 from fetch.errors import DatasetError, FetchError
@@ -211,30 +210,3 @@ def split(path: str | os.PathLike[str], valid: float, seed: int = 0) -> dict[str
                 raise
             raise DatasetError(f"could not rewrite {index}: {why(e)}; it is unchanged") from e
     return {k: len(masks[k]) for k in schema.SPLITS}
-
-
-def add_edit_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """`merge` and `split`."""
-    m = sub.add_parser("merge", help="combine datasets of the same env into one self-contained file")
-    m.add_argument("inputs", nargs="+", metavar="FILE", help="datasets (files or collector directories), in order")
-    m.add_argument("--out", required=True, help="the merged file (.hdf5)")
-    m.add_argument("--force", action="store_true", help="replace --out if it exists")
-    m.set_defaults(run=run_merge)
-    s = sub.add_parser("split", help="remake mask/train and mask/valid from the successful demos")
-    s.add_argument("file", help=FILE_HELP)
-    s.add_argument("--valid", type=float, default=0.1, help="fraction of successful demos for validation (default 0.1)")
-    s.add_argument("--seed", type=int, default=0, help="seed of the random assignment (default 0)")
-    s.set_defaults(run=run_split)
-
-
-def run_merge(args: argparse.Namespace) -> int:
-    report = merge(args.inputs, args.out, force=args.force)
-    print(f"merged {len(args.inputs)} datasets: {report.demos} demos, {report.steps} steps -> {report.out} "
-          "(" + ", ".join(f"{k} {v}" for k, v in sorted(report.masks.items())) + ")")
-    return 0
-
-
-def run_split(args: argparse.Namespace) -> int:
-    sizes = split(args.file, args.valid, args.seed)
-    print(f"split {args.file}: " + ", ".join(f"{k} {v}" for k, v in sizes.items()))
-    return 0

@@ -18,7 +18,6 @@ from fetch._durable import atomic_write
 from fetch.dataset import schema
 from fetch.dataset.background import BackgroundWriter
 from fetch.dataset.episode import Demo
-from fetch.dataset.replay import ReplayCheck, resimulate
 from fetch.errors import DatasetError
 
 _NUMBER = re.compile(r"_ep(\d+)_")
@@ -160,13 +159,3 @@ def problems(demo: NpzDemo) -> list[str]:
         if (key.startswith("obs__") or key == "states") and len(value) != t + 1:
             out.append(f"{demo.path.name}: {key} has {len(value)} rows, expected T+1 = {t + 1}")
     return out
-
-
-def check_npz(demo: NpzDemo, env: Any) -> ReplayCheck:
-    """Replay one file as `replay --check` does an HDF5 demo (`fetch.dataset.replay.resimulate`)."""
-    a = demo.arrays
-    keys = [k[len("obs__"):] for k in a if k.startswith("obs__")]
-    recorded = any(float(i.get("is_success", 0.0)) >= 1.0 for i in json.loads(str(a["info_json"])))
-    return resimulate(demo.path.name, env, int(demo.metadata["seed"]), a["action"], a["states"],
-                      first={k: a[f"obs__{k}"][:1] for k in keys}, recorded_next={k: a[f"obs__{k}"][1:] for k in keys},
-                      success_recorded=recorded)

@@ -15,9 +15,10 @@ import h5py
 import numpy as np
 
 from fetch._confine import inside
+from fetch._durable import BusyError
 from fetch.dataset import schema
 from fetch.dataset.demo_file import read_demo_group
-from fetch.dataset.durable import BusyError, editing, journal_renames
+from fetch.dataset.holding import editing, interrupted_renames
 from fetch.dataset.sealed import check_index, check_sealed
 from fetch.env import recorded_kwargs
 from fetch.errors import DatasetError, FetchError, OutsideError, one_line
@@ -238,7 +239,7 @@ def open_dataset(path: str | os.PathLike[str], mode: str = "r") -> Dataset:
         raise DatasetError(f"{p}: no such file")
     if not p.is_file():  # a FIFO or a device would block the open, or read forever
         raise DatasetError(f"{p} is not a regular file; a dataset is an HDF5 file (or the directory that holds one)")
-    if journal_renames(p) is not None:  # an edit stopped between its renames (the journal checked first):
+    if interrupted_renames(p) is not None:  # an edit stopped between its renames (the journal checked first):
         with contextlib.suppress(BusyError, OSError), editing(p):  # finish it, unless another tool holds it
             pass
     try:

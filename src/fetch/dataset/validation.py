@@ -10,8 +10,8 @@ from typing import Any
 import h5py
 import numpy as np
 
+from fetch._durable import journal_of
 from fetch.dataset import schema
-from fetch.dataset.durable import journal_of
 from fetch.dataset.reader import READ_ERRORS, Dataset, one_line, plain_value
 from fetch.errors import DatasetError
 from fetch.tasks.base import goal_distance, reward

@@ -29,13 +29,13 @@ from fetch._durable import atomic_write, why
 from fetch.dataset import schema
 from fetch.dataset.background import BackgroundWriter, require_writable
 from fetch.dataset.demo_file import hdf5_bytes, read_demo_group, write_demo_file
-from fetch.dataset.durable import finish_rewrites
 from fetch.dataset.episode import Demo
+from fetch.dataset.holding import finish_rewrites
 from fetch.dataset.sealed import check_sealed
 from fetch.errors import DatasetError
 
 if TYPE_CHECKING:
-    from fetch.dataset.frames import RenderPool
+    from fetch.dataset.render.frames import RenderPool
 
 VALID_EVERY = 10
 """Every 10th successful demo goes to `mask/valid` (a stable 90/10 split as demos are appended)."""
@@ -346,8 +346,8 @@ class DatasetWriter(BackgroundWriter):
 
     def _render(self, name: str, states: np.ndarray, cameras: list[str], seed: int | None) -> dict[str, np.ndarray]:
         """A demo's images, from a worker process; one that dies is replaced, as render_ahead's are."""
-        from fetch.dataset.frames import RenderPool
-        from fetch.dataset.render_ahead import RESTARTS
+        from fetch.dataset.render.frames import RenderPool
+        from fetch.dataset.render.render_ahead import RESTARTS
 
         if self._renderer is None:
             h = self.header

@@ -15,8 +15,8 @@ import numpy as np
 
 from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.formats import recorded_layout
-from fetch.dataset.frames import StateRenderer
 from fetch.dataset.habits import SQUEEZE
+from fetch.dataset.render.frames import StateRenderer
 from fetch.errors import FetchError, UnknownNameError
 from fetch.experts.base import Expert
 from fetch.generate.room import finger_room, pass_over

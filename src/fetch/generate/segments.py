@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -278,3 +280,24 @@ def tidy_steps(targets: np.ndarray, grips: np.ndarray, openings: np.ndarray | No
         else:
             keep.append(int(i))
     return first, np.asarray(keep, int)
+
+
+def describe_subtasks(path: str | os.PathLike[str], demo: str | None = None) -> Iterator[str]:
+    """`gym-fetch subtasks`: the task's subtasks, then one line per demo (`demo`: an index or name; None: all)
+    saying the steps each subtask spans, as `annotate` cuts them from the saved states."""
+    import gymnasium as gym
+
+    from fetch.dataset.reader import open_dataset
+    from fetch.dataset.validation import require_valid
+
+    with open_dataset(path) as ds:
+        names = ds.select(demo)
+        require_valid(ds, names, images=False)
+        env: Any = gym.make(ds.env_id, **ds.env_kwargs).unwrapped
+        subtasks = type(env.task).subtasks
+        yield f"{ds.env_id}: subtasks {', '.join(s.name for s in subtasks)}"
+        for name in names:
+            arrays = ds.arrays(name)
+            a = annotate(env, subtasks, arrays["states"], arrays["actions"][:, 3])
+            parts = ", ".join(f"{subtasks[k].name} {lo}-{hi - 1}" for k, (lo, hi) in enumerate(a.bounds()))
+            yield f"{name}: {parts}" + ("" if a.complete else " (incomplete: not every subtask ended)")

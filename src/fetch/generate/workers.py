@@ -57,7 +57,7 @@ class Work:
 
 def _one_gl_thread() -> None:
     """In a worker process: software GL (llvmpipe) renders with one thread, as the render workers do
-    (`dataset.frames`), so that K workers on K cores do not contend; unless the user set it."""
+    (`dataset.render.frames`), so that K workers on K cores do not contend; unless the user set it."""
     os.environ.setdefault("LP_NUM_THREADS", "1")
 
 

@@ -80,7 +80,7 @@ def with_goal_offsets(x: np.ndarray, achieved: np.ndarray) -> np.ndarray:
 
     An MLP could compute these differences itself, but from inputs normalised one by one it learns
     them slowly: on Push they raised one network's success from 71 to 75 % (500 evaluation episodes,
-    3 training seeds; docs/learning_curves.md)."""
+    3 training seeds; docs/results/learning_curves.md)."""
     desired = x[..., -3:]
     return np.concatenate([x, desired - achieved, desired - x[..., GRIP]], axis=-1)
 

@@ -5,6 +5,7 @@ policy and torch are loaded only when the device is built."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping
 from typing import Any
@@ -61,18 +62,27 @@ class PolicyDevice:
             self._cameras.close()
 
 
+@dataclasses.dataclass(frozen=True)
+class PolicyOptions:
+    """The policy device's flag (the takeover device reads it too)."""
+
+    policy: str | None = None
+    """the run directory `gym-fetch train` wrote."""
+
+
 def add_policy_arguments(p: Any) -> None:
     p.add_argument("--policy", default=None, metavar="RUN",
                    help="with --device policy: the run directory `gym-fetch train` wrote")
 
 
 def build_policy(context: DeviceContext) -> Device:
-    run = getattr(context.args, "policy", None)
+    run = context.options_for(PolicyOptions).policy
     if not run:
         raise FetchError("--device policy needs --policy RUN (a directory written by `gym-fetch train`)")
     return PolicyDevice(context.env, run)
 
 
 KIND = register(DeviceKind(
-    name="policy", human=False, legend=(), add_arguments=add_policy_arguments, build=build_policy,
+    name="policy", human=False, legend=(), add_arguments=add_policy_arguments, options=PolicyOptions,
+    build=build_policy,
     summary="a policy trained by `gym-fetch train` (--policy RUN)"))

@@ -168,7 +168,7 @@ def evaluate(policy: Any, episodes: int, *, envs: int = 50, seed_start: int = EV
 def record_videos(policy: Any, seeds: list[int], out_dir: str | pathlib.Path, *, camera: str = "front",
                   size: int = 320) -> list[pathlib.Path]:
     """One mp4 per seed in `out_dir` (`<env>_seed<seed>.mp4`) of the policy acting for the horizon."""
-    from fetch.dataset.video import check_video_path, write_video
+    from fetch.dataset.render.video import check_video_path, write_video
 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -46,7 +46,7 @@ PIXEL_ENSEMBLE_DECAY = -1.0
 ACT weighs them all nearly alike (0.01). A chunk predicted steps ago saw the object from farther off, where the
 images place it to 1-3 cm; averaged in alike, those guesses brought the hand down beside the block. On 300
 unseen seeds, Bin-place from the `person` stand-in's demos 87.3 -> 92.3 %, from `standin`'s 94.7 -> 95.7 %
-(docs/training.md, "Which chunks the pixel policy acts on")."""
+(docs/training.md, "Why these defaults")."""
 
 KINDS: tuple[PolicyKind, ...] = (
     PolicyKind("gru", "a recurrent policy (BC-RNN): reads a window of observations, one action per step",
@@ -73,6 +73,24 @@ def kind(name: str) -> PolicyKind:
     if not isinstance(name, str) or name not in _BY_NAME:
         raise UnknownNameError("policy", name, POLICY_KINDS)
     return _BY_NAME[name]
+
+
+AUTO = "auto"
+"""`--policy auto`: the kind the task's recipe names (`fetch.learn.recipes`), or with `--inputs pixels` the
+pixel kind (`pixel_kind`)."""
+
+
+def pixel_kind() -> PolicyKind:
+    """The kind that learns from camera images (what `--policy auto --inputs pixels` trains)."""
+    return next(k for k in KINDS if k.inputs == "pixels")
+
+
+def uses_pixels(policy: str, inputs: str = "state") -> bool:
+    """Whether a run of kind `policy` (or "auto", `AUTO`) asked to see `inputs` learns from camera images:
+    `inputs` "pixels" asks for them whatever the kind (a state kind asked for them is refused when the run
+    is planned), a pixel kind sees them whatever `inputs`. The one place "pixels or state" is decided:
+    `gym-fetch train`, `settings.plan` and a policy's own settings ask here."""
+    return inputs == "pixels" or (policy != AUTO and kind(policy).inputs == "pixels")
 
 
 LOSSES = ("l1", "mse")
@@ -164,7 +182,7 @@ class PolicySettings:
                 raise FetchError(f"policy {name} must be a list, got {reprlib.repr(getattr(self, name))}")
         object.__setattr__(self, "blind", tuple(self.blind))  # a checkpoint may hold a list
         object.__setattr__(self, "cameras", tuple(self.cameras))
-        pixels = kind(self.kind).inputs == "pixels"
+        pixels = uses_pixels(self.kind)
         if pixels and not self.cameras:
             raise FetchError(f"a {self.kind} policy sees camera images: name at least one camera")
         if not pixels and self.cameras:

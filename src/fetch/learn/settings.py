@@ -1,8 +1,8 @@
 """What training does unless told otherwise, decided in one place for `gym-fetch train` and Python callers.
 
 A caller says what it wants in a `TrainRequest` (the CLI's flags, one field each; None and "auto" leave
-the choice open); `plan` fills in the rest from the task's line in the task table (`fetch.tasks.Training`,
-the choices measured best on it), the policy kind's defaults (`fetch.learn.kinds`) and, going on from a
+the choice open); `plan` fills in the rest from the task's recipe (`fetch.learn.recipes`, the choices
+measured best on it), the policy kind's defaults (`fetch.learn.kinds`) and, going on from a
 run, that run's settings, and returns the `TrainPlan` that `fetch.learn.train.train` runs. No torch here.
 """
 
@@ -17,10 +17,9 @@ from typing import Any
 from fetch.dataset.habits import layout_of
 from fetch.errors import FetchError
 from fetch.learn.data import Demos, unseen_by_pixels, velocity_columns
-from fetch.learn.kinds import INPUTS, KINDS, PolicyConfig, PolicySettings, kind
-from fetch.tasks import Training, registration
+from fetch.learn.kinds import AUTO, INPUTS, KINDS, PolicyConfig, PolicySettings, kind, pixel_kind, uses_pixels
+from fetch.learn.recipes import Training, task_training
 
-AUTO = "auto"
 ACCELERATORS = ("auto", "cpu", "cuda")
 PRECISIONS = ("auto", "fp32", "bf16")
 """How a training step computes: fp32, or bf16 (the network's matrix products and convolutions in bfloat16
@@ -93,7 +92,7 @@ class TrainRequest:
     leaves the choice to `plan`."""
 
     policy: str = AUTO
-    """a policy kind (`fetch.learn.kinds.POLICY_KINDS`), or "auto": the task's (`fetch.tasks.Training`), or
+    """a policy kind (`fetch.learn.kinds.POLICY_KINDS`), or "auto": the task's (`fetch.learn.recipes`), or
     with `inputs="pixels"` the pixel kind."""
     inputs: str = "state"
     """what the policy sees (`fetch.learn.kinds.INPUTS`): the state, or the cameras' images with the robot's
@@ -159,12 +158,7 @@ def sees_pixels(request: TrainRequest | TrainPlan, base: dict[str, Any] | None =
         return bool(request.policy.cameras)
     if base is not None:
         return bool(base["policy"].get("cameras"))
-    return request.inputs == "pixels" or (request.policy != AUTO and kind(request.policy).inputs == "pixels")
-
-
-def task_training(env_id: str) -> Training:
-    """What `--policy auto` trains on `env_id` unless told otherwise (its line in the task table)."""
-    return registration(env_id).training
+    return uses_pixels(request.policy, request.inputs)
 
 
 def plan(request: TrainRequest, demos: Demos, base: dict[str, Any] | None = None) -> TrainPlan:
@@ -222,9 +216,10 @@ def _policy(request: TrainRequest, demos: Demos) -> PolicySettings:
     chosen: dict[str, Any] = {}
     if request.policy == AUTO:
         auto = task_training(demos.env_id)
-        name = auto.policy if request.inputs == "state" else next(k.name for k in KINDS if k.inputs == "pixels")
+        pixels = uses_pixels(AUTO, request.inputs)
+        name = pixel_kind().name if pixels else auto.policy
         chosen = {"goal_offsets": auto.goal_offsets, "velocities": auto.velocities}
-        if request.inputs == "state":
+        if not pixels:
             chosen["members"] = auto.members  # an ensemble of CNNs would take that many times as long
         if auto.chunk is not None and "chunk" in kind(name).own:
             chosen["chunk"] = auto.chunk
@@ -239,7 +234,7 @@ def _policy(request: TrainRequest, demos: Demos) -> PolicySettings:
     layout = layout_of(demos.env_id) or {}
     velocities = chosen.pop("velocities", True)
     blind = set() if velocities else set(velocity_columns(layout))
-    if kind(name).inputs == "pixels":
+    if uses_pixels(name):
         chosen["cameras"] = _cameras(chosen.get("cameras"), demos)
         blind |= set(unseen_by_pixels(layout, bool(chosen.get("goal_offsets", False))))
     elif chosen.get("cameras"):

@@ -12,13 +12,14 @@ fingers while the policy drives, so taking over does not open or close them.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from fetch.errors import FetchError
-from fetch.learn.device import PolicyDevice
+from fetch.learn.device import PolicyDevice, PolicyOptions
 from fetch.teleop.devices import Command, Device, DeviceContext, DeviceKind
 from fetch.teleop.registry import device_kind, register
 
@@ -91,6 +92,14 @@ class TakeoverDevice:
         self.policy.close()
 
 
+@dataclasses.dataclass(frozen=True)
+class TakeoverOptions:
+    """The takeover device's flag (its policy is the policy device's --policy: `PolicyOptions`)."""
+
+    takeover_with: str = "gamepad"
+    """the device the person takes over with (`PEOPLE`)."""
+
+
 def add_takeover_arguments(p: Any) -> None:
     p.add_argument("--takeover-with", default="gamepad", choices=PEOPLE,
                    help="with --device takeover: what the person takes over with (default gamepad; keyboard: "
@@ -98,13 +107,13 @@ def add_takeover_arguments(p: Any) -> None:
 
 
 def build_takeover(context: DeviceContext) -> Device:
-    run = getattr(context.args, "policy", None)
+    run = context.options_for(PolicyOptions).policy
     if not run:
         raise FetchError("--device takeover needs --policy RUN (a directory written by `gym-fetch train`)")
     with contextlib.ExitStack() as undo:  # closes what was opened if a later part fails
         policy = PolicyDevice(context.env, run)  # first: a run that cannot be used is refused before a pad is sought
         undo.callback(policy.close)
-        person = device_kind(getattr(context.args, "takeover_with", "gamepad")).build(context)
+        person = device_kind(context.options_for(TakeoverOptions).takeover_with).build(context)
         undo.callback(person.close)
         device = TakeoverDevice(policy, person)
         undo.pop_all()
@@ -112,7 +121,8 @@ def build_takeover(context: DeviceContext) -> Device:
 
 
 KIND = register(DeviceKind(
-    name="takeover", human=True, add_arguments=add_takeover_arguments, build=build_takeover,
+    name="takeover", human=True, add_arguments=add_takeover_arguments, options=TakeoverOptions,
+    build=build_takeover,
     summary="a trained policy (--policy RUN) that you correct: any input takes over, let go to hand back",
     legend_from="takeover_with", waits_for_input=False,
     legend=("the policy drives: any input takes over", "let go 0.5 s: it drives again")))

@@ -11,7 +11,8 @@ import os
 import pathlib
 import sys
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -123,22 +124,42 @@ def validation_loss(policy: PolicyConfig, model: torch.nn.Module, valid: Samples
     return total / float(batch.m.sum())
 
 
-def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
-          request: TrainRequest | TrainPlan | None = None, *, log: Any = None,
-          show_progress: bool = True) -> TrainResult:
-    """Train a policy on `dataset`, writing `out/checkpoint.pt`, as `gym-fetch train` does.
+@dataclasses.dataclass(frozen=True)
+class RunPlan:
+    """What a run trains, resolved before anything is trained: its settings, its policy and its demos."""
 
-    `dataset` is a dataset file or directory, or demos already loaded (and, say, relabelled). `request`
-    says what to train, with the same defaults as the command (`settings.plan` fills them in; None: all
-    of them); a `TrainPlan` is trained as it is. A run that `out` already holds with the same settings is
-    resumed from its last checkpoint (one that finished is left as it is). Going on from another run
-    (`start_from`, `gym-fetch train --from`) starts from its weights and its input normalisation, so
-    what it learnt still applies, and keeps its policy settings."""
-    from fetch._progress import progress
+    chosen: TrainPlan
+    """the settings, precision resolved for `device`."""
+    policy: PolicyConfig
+    """the network, with its input sizes."""
+    demos: Demos
+    """the demos it learns from: those asked for (`--demos`) and, mirrored, their mirror images."""
+    source: dict[str, Any]
+    """where the demos (and, going on from a run, the weights) came from: the checkpoint's "source"."""
+    horizon: int
+    """[steps] the episode length a policy learnt from these demos is given (`Demos.horizon`, before mirroring)."""
+    device: torch.device
+    base: dict[str, Any] | None
+    """the checkpoint of the run it goes on from (`TrainPlan.start_from`), or None."""
 
-    say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
-    run = pathlib.Path(out)
-    request = TrainRequest() if request is None else request
+
+class RunState(NamedTuple):
+    """Where the gradient steps start: a new network or the one a checkpoint holds, and what it saved."""
+
+    model: torch.nn.Module
+    optimizer: torch.optim.Optimizer
+    norm: Normalizer
+    history: dict[str, list[float]]
+    """per checkpoint: its step, the mean training loss since the one before, the validation loss (nan: none)."""
+    start: int
+    """the gradient steps already taken (0: a new run)."""
+
+
+def plan_run(dataset: str | os.PathLike[str] | Demos, run: pathlib.Path,
+             request: TrainRequest | TrainPlan) -> RunPlan:
+    """What `train` trains in `run`: the demos loaded (with images for a pixel policy), checked against the
+    run it goes on from, cut to `--demos` and mirrored; the settings `settings.plan` fills in; the policy's
+    input sizes; the device and the precision it computes in."""
     start_from = request.start_from
     base = ckpt.read(start_from) if start_from is not None else None
     demos = dataset if isinstance(dataset, Demos) else load_demos(dataset, images=sees_pixels(request, base))
@@ -172,7 +193,16 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     if chosen.config.precision == "auto":
         chosen = dataclasses.replace(chosen, config=dataclasses.replace(
             chosen.config, precision="bf16" if native_bf16(device) else "fp32"))
-        config = chosen.config
+    return RunPlan(chosen, policy_config, demos, source, horizon, device, base)
+
+
+def restore(planned: RunPlan, run: pathlib.Path, say: Callable[[str], object]) -> RunState:
+    """The network, optimizer and normalisation the gradient steps start from: new ones under the seed, with
+    the weights and normalisation of the run it goes on from (`--from`), and, where `run` already holds a
+    checkpoint of the same settings, everything that checkpoint saved (its generator's state included), so
+    the steps go on as if never stopped. Sets torch's threads and determinism for the process."""
+    config, policy_config, demos, base = planned.chosen.config, planned.policy, planned.demos, planned.base
+    start_from = planned.chosen.start_from
     torch.set_num_threads(config.threads)
     hold_freed_memory()
     torch.use_deterministic_algorithms(True)
@@ -181,7 +211,8 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     model = build(policy_config)
     if base is not None:
         learnt = PolicyConfig.upgraded(base["policy"])
-        if pixels and (learnt["image_size"], learnt["image_quality"]) != (demos.image_size, demos.image_quality):
+        if policy_config.cameras and (learnt["image_size"], learnt["image_quality"]) != (demos.image_size,
+                                                                                          demos.image_quality):
             raise FetchError(f"--from {start_from} learnt from {learnt['image_size']} px {learnt['image_quality']}-"
                              f"quality images; {demos.origin} holds {demos.image_size} px {demos.image_quality}")
         if ckpt.plain(learnt) != ckpt.plain(policy_config.as_dict()):
@@ -189,7 +220,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
                              "the policy flags out and the run's are used")
         load_weights(ckpt.file_of(str(start_from)), model, base["model"])
         norm = Normalizer(base["norm"]["mean"].numpy(), base["norm"]["std"].numpy())
-    model.to(device)
+    model.to(planned.device)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     history: dict[str, list[float]] = {"step": [], "train_loss": [], "valid_loss": []}
     start = 0
@@ -198,7 +229,7 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
         # A run saved before a training setting existed had that setting's default.
         saved = {**dataclasses.asdict(TrainConfig()), **previous["train"]}
         ckpt.require_same(run, {**previous, "train": saved, "policy": PolicyConfig.upgraded(previous["policy"])},
-                          policy_config.as_dict(), dataclasses.asdict(config), source)
+                          policy_config.as_dict(), dataclasses.asdict(config), planned.source)
         load_weights(ckpt.path(run), model, previous["model"])
         load_optimizer(ckpt.path(run), optimizer, previous["optimizer"])
         torch.set_rng_state(previous["rng"])
@@ -208,7 +239,19 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
             say(f"resuming {run} from step {start} of {config.steps}")
     else:
         run.mkdir(parents=True, exist_ok=True)
+    return RunState(model, optimizer, norm, history, start)
 
+
+def loop(planned: RunPlan, state: RunState, run: pathlib.Path, say: Callable[[str], object],
+         show_progress: bool = True) -> TrainResult:
+    """The gradient steps from `state.start` to the plan's last: each step's learning rate and batch follow
+    from the step alone; every `checkpoint_every` steps and at the last, the validation loss is measured and
+    the whole state written to `run`'s checkpoint atomically, so a run stopped at any moment (even killed)
+    resumes from the last one as if never stopped."""
+    from fetch._progress import progress
+
+    chosen, config, policy_config, demos = planned.chosen, planned.chosen.config, planned.policy, planned.demos
+    device, (model, optimizer, norm, history, start) = planned.device, state
     train_samples = samples(policy_config, demos.train, norm)
     valid_samples = samples(policy_config, demos.valid, norm) if demos.valid else None
     examples = train_samples.tensors()
@@ -220,20 +263,20 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     where = (f" on {device}" if device != CPU else "") + (" in bf16" if config.precision == "bf16" else "")
     say(f"training {policy_config.kind}{members} on {len(demos.train)} {demos.env_id} demos{mirrored} "
         f"({len(train_samples)} examples) for steps {start + 1}-{config.steps}, batch {config.batch_size}, "
-        f"{config.threads} thread(s){where}; horizon {horizon} steps; checkpoint every {config.checkpoint_every} steps "
-        f"in {ckpt.path(run)}")
+        f"{config.threads} thread(s){where}; horizon {planned.horizon} steps; checkpoint every "
+        f"{config.checkpoint_every} steps in {ckpt.path(run)}")
     clock = time.perf_counter()
     first = min(config.steps, start + max(10, (config.steps - start) // 100))  # when to say how long it takes
 
     def save(step: int) -> None:
-        state = {"format": ckpt.FORMAT, "version": ckpt.VERSION, "policy": policy_config.as_dict(),
-                 "train": dataclasses.asdict(config), "source": source, "step": step,
+        saved = {"format": ckpt.FORMAT, "version": ckpt.VERSION, "policy": policy_config.as_dict(),
+                 "train": dataclasses.asdict(config), "source": planned.source, "step": step,
                  "norm": {"mean": torch.from_numpy(norm.mean), "std": torch.from_numpy(norm.std)},
                  "seeds": torch.tensor(sorted(demos.seeds), dtype=torch.int64),
                  "model": model.state_dict(), "optimizer": optimizer.state_dict(), "rng": torch.get_rng_state(),
-                 "history": history, "horizon": horizon}
+                 "history": history, "horizon": planned.horizon}
         buffer = io.BytesIO()
-        torch.save(state, buffer)
+        torch.save(saved, buffer)
         ckpt.write(run, buffer.getvalue())
 
     steps = range(start, config.steps)
@@ -270,3 +313,20 @@ def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
     last_valid = history["valid_loss"][-1]
     return TrainResult(run, config.steps, history["train_loss"][-1],
                        None if math.isnan(last_valid) else last_valid, start, chosen)
+
+
+def train(dataset: str | os.PathLike[str] | Demos, out: str | os.PathLike[str],
+          request: TrainRequest | TrainPlan | None = None, *, log: Any = None,
+          show_progress: bool = True) -> TrainResult:
+    """Train a policy on `dataset`, writing `out/checkpoint.pt`, as `gym-fetch train` does.
+
+    `dataset` is a dataset file or directory, or demos already loaded (and, say, relabelled). `request`
+    says what to train, with the same defaults as the command (`settings.plan` fills them in; None: all
+    of them); a `TrainPlan` is trained as it is. A run that `out` already holds with the same settings is
+    resumed from its last checkpoint (one that finished is left as it is). Going on from another run
+    (`start_from`, `gym-fetch train --from`) starts from its weights and its input normalisation, so
+    what it learnt still applies, and keeps its policy settings."""
+    say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
+    run = pathlib.Path(out)
+    planned = plan_run(dataset, run, TrainRequest() if request is None else request)
+    return loop(planned, restore(planned, run, say), run, say, show_progress)

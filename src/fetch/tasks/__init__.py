@@ -1,6 +1,6 @@
-"""The task table: each registered Gymnasium id, its task, its horizon and how a policy learns it, one
-line each. Everything else about a task is on its class (`tasks.base.Task`): its scene, observation,
-success rule, subtasks, instruction, expert and the window's view."""
+"""The task table: each registered Gymnasium id, its task and its horizon, one line each. Everything else
+about a task is on its class (`tasks.base.Task`): its scene, observation, success rule, subtasks,
+instruction, expert and the window's view; how a policy learns it is in `fetch.learn.recipes`."""
 
 from __future__ import annotations
 
@@ -14,44 +14,22 @@ from fetch.tasks.classic import PickPlace, Push, Reach, Slide
 from fetch.tasks.drawer import DrawerClose, DrawerOpen
 
 
-class Training(NamedTuple):
-    """How `gym-fetch train` (`--policy auto`) learns a task unless told otherwise: the choices measured
-    best on it (docs/training.md, "Each task's defaults", has the measurements)."""
-
-    policy: str = "gru"
-    """the kind of policy (`fetch.learn.kinds.KINDS`)."""
-    steps: int = 5000
-    """gradient steps."""
-    mirror: bool = False
-    """also learn from each demo's mirror image (`Task.mirrors` tasks only)."""
-    members: int = 1
-    """networks in the ensemble."""
-    goal_offsets: bool = False
-    """also see the goal relative to the achieved goal and to the grip site."""
-    velocities: bool = True
-    """see the observation's velocities (a pixel policy: the robot's own)."""
-    chunk: int | None = None
-    """mlp-chunk: actions per prediction (None: the kind's default)."""
-
-
 class Registration(NamedTuple):
     env_id: str
     task: type[Task]
     max_episode_steps: int
-    training: Training = Training()
 
 
 REGISTRATIONS: tuple[Registration, ...] = (
-    Registration("Bin-pick-v2", BinPick, 50, Training(steps=10000)),
-    Registration("Bin-place-v2", BinPlace, 50, Training(steps=10000)),
+    Registration("Bin-pick-v2", BinPick, 50),
+    Registration("Bin-place-v2", BinPlace, 50),
     Registration("Box-open-v2", BoxOpen, 50),
     Registration("Box-close-v2", BoxClose, 50),
     Registration("Drawer-open-v2", DrawerOpen, 50),
-    Registration("Drawer-close-v2", DrawerClose, 50, Training(policy="mlp-chunk")),
+    Registration("Drawer-close-v2", DrawerClose, 50),
     Registration("Reach-v2", Reach, 50),
-    Registration("Push-v2", Push, 50, Training(policy="mlp-chunk", steps=10000, mirror=True, members=5,
-                                               goal_offsets=True, velocities=False, chunk=1)),
-    Registration("PickPlace-v2", PickPlace, 50, Training(steps=10000, mirror=True, velocities=False)),
+    Registration("Push-v2", Push, 50),
+    Registration("PickPlace-v2", PickPlace, 50),
     Registration("Slide-v2", Slide, 50),
 )
 

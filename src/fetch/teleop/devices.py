@@ -3,16 +3,16 @@
 A device is polled once per control tick for a `Command`. Each kind of device declares itself once,
 as a `DeviceKind` beside its code (its name, whether a person drives it, its legend, its flags and
 how to build it); `fetch.teleop.registry` lists them, and the CLI, the session and the viewer read
-only that list.
+only that list. A device never sees the command line: its flags arrive as its own typed options
+(`DeviceKind.options`), in the `DeviceContext` it is built with.
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 from collections.abc import Callable, Collection, Mapping
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -150,16 +150,42 @@ class Device(Protocol):
     def close(self) -> None: ...
 
 
+FRAMES = ("camera", "world")
+"""Which way a person's input steers: "camera", 'up' moves away from the viewer (the view's yaw); "world", up
+is the world's +y whatever the view."""
+
+Options = TypeVar("Options")
+
+
+def options_in(given: Collection[object], kind: type[Options]) -> Options:
+    """The options of type `kind` (a `DeviceKind.options`) among those `given`, else its defaults."""
+    for options in given:
+        if isinstance(options, kind):
+            return options
+    return kind()
+
+
 @dataclasses.dataclass(frozen=True)
 class DeviceContext:
-    """What a device may need when it is built: the session's env, the collect flags (each device
-    reads its own), the window if there is one, and the yaw of the view to steer in (None: the
-    world's axes)."""
+    """What a device may need when it is built: the session's env, the window if there is one, the yaw of
+    the view to steer in (None: the world's axes), the session settings a device reads, and each device's
+    own options (`DeviceKind.options`; `options_for` finds one)."""
 
     env: Any
-    args: argparse.Namespace
     viewer: Any | None
     yaw: Callable[[], float] | None
+    seed: int = 0
+    """attempt k of the dataset resets with seed + k."""
+    max_steps: int = 0
+    """[steps] the longest attempt, as the session decided it."""
+    keep_failures: bool = False
+    """failed attempts are saved too."""
+    options: tuple[object, ...] = ()
+    """the devices' options given (one object per kind at most; a kind's left out has its defaults)."""
+
+    def options_for(self, kind: type[Options]) -> Options:
+        """The options of type `kind` (a `DeviceKind.options`) given, else its defaults."""
+        return options_in(self.options, kind)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -181,7 +207,8 @@ class DeviceKind:
     summary: str
     """One line for `--help`."""
     add_arguments: Callable[[Any], None] | None
-    """Adds the device's own flags to an argparse parser or group (None: it has none)."""
+    """Adds the device's own flags to a parser or group of the command layer (None: it has none); each flag's
+    destination is a field of `options`."""
     build: Callable[[DeviceContext], Device]
     aliases: tuple[str, ...] = ()
     """Other `--device` values meaning this one ("xbox", collect_fetch_demo.py's name, is the gamepad)."""
@@ -189,15 +216,19 @@ class DeviceKind:
     """Where a person drives: an attempt's clock starts at their first input (False: something else drives
     from the start, as a policy the person corrects)."""
     legend_from: str = ""
-    """The argument (e.g. "takeover_with") naming another device whose legend the window shows after this
-    one's: a device that a person drives through another."""
+    """The field of `options` (e.g. "takeover_with") naming another device whose legend the window shows after
+    this one's: a device that a person drives through another."""
     reads_window: bool = False
     """It reads its input from the collection window (keys typed into it): without a window it cannot run, and
     the collector says so, in one line naming what works, before anything opens."""
     holds_past_success: bool = False
     """Unless `--stop-on-success` is given, an attempt runs on to the task's horizon (the default
     `--max-steps`) instead of ending once success has held: a demo that shows holding the goal
-    teaches a policy more (docs/learning_curves.md), and costs no one's time when no person drives."""
+    teaches a policy more (docs/results/learning_curves.md), and costs no one's time when no person drives."""
+    options: type[Any] | None = None
+    """The frozen dataclass of the device's own flags, one field per flag (named as its destination:
+    `--expert-noise` is `expert_noise`), every field with a default; what `build` reads through
+    `DeviceContext.options_for`. None: it has no flags."""
 
     def __post_init__(self) -> None:
         where = f"device {self.name!r}"
@@ -223,3 +254,12 @@ class DeviceKind:
             raise TypeError(f"{where}: holds_past_success must be True or False, got {self.holds_past_success!r}")
         if not callable(self.build):
             raise TypeError(f"{where}: build must be a function of a DeviceContext, got {self.build!r}")
+        if self.options is not None:
+            if not (isinstance(self.options, type) and dataclasses.is_dataclass(self.options)):
+                raise TypeError(f"{where}: options must be a dataclass of its flags, got {self.options!r}")
+            self.options()  # every field has a default: a session that gives none builds the device as documented
+        if (self.add_arguments is None) != (self.options is None):
+            raise TypeError(f"{where}: add_arguments (its flags) and options (what they are read into) go together")
+        if self.legend_from and (self.options is None
+                                 or self.legend_from not in {f.name for f in dataclasses.fields(self.options)}):
+            raise TypeError(f"{where}: legend_from must name a field of its options, got {self.legend_from!r}")

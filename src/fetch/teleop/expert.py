@@ -3,15 +3,16 @@
 By default the expert records under DART noise (Laskey et al. 2017): the arm executes the expert's
 action plus Gaussian noise, so the demos visit the states a learned policy drifts into, and each step
 also records the expert's clean action there (`expert_actions`), which is what `gym-fetch train`
-learns. `actions` stays what the arm did, so the demo replays exactly. docs/learning_curves.md has
-the measurements behind the default; `--expert-noise 0` records the plain expert. a[3] is metres of
+learns. `actions` stays what the arm did, so the demo replays exactly. docs/training.md ("Why these
+defaults") has the measurements behind the default; `--expert-noise 0` records the plain expert. a[3] is metres of
 finger target, so the same 0.1 there swings the fingers between open and closed from step to step;
-`--expert-finger-noise 0.005` perturbs them as many metres as the hand (docs/training.md, "The
-fingers' DART noise").
+`--expert-finger-noise 0.005` perturbs them as many metres as the hand (docs/training.md, "Why
+these defaults").
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from typing import Any
@@ -58,6 +59,16 @@ class ExpertDevice:
         pass
 
 
+@dataclasses.dataclass(frozen=True)
+class ExpertOptions:
+    """The expert device's flags."""
+
+    expert_noise: float = EXPERT_NOISE
+    """std of the Gaussian noise on the executed action (0: the plain expert)."""
+    expert_finger_noise: float | None = None
+    """std of that noise on a[3], metres of finger target (None: `expert_noise`)."""
+
+
 def add_expert_arguments(p: Any) -> None:
     p.add_argument("--expert-noise", type=float, default=EXPERT_NOISE, metavar="STD",
                    help="with --device expert: std of the Gaussian noise added to the executed action, the "
@@ -70,12 +81,12 @@ def add_expert_arguments(p: Any) -> None:
 
 
 def build_expert(context: DeviceContext) -> ExpertDevice:
-    args = context.args
-    return ExpertDevice(context.env, getattr(args, "expert_noise", EXPERT_NOISE), getattr(args, "seed", 0),
-                        getattr(args, "expert_finger_noise", None))
+    options = context.options_for(ExpertOptions)
+    return ExpertDevice(context.env, options.expert_noise, context.seed, options.expert_finger_noise)
 
 
 KIND = DeviceKind(
-    name="expert", human=False, legend=(), add_arguments=add_expert_arguments, holds_past_success=True,
+    name="expert", human=False, legend=(), add_arguments=add_expert_arguments, options=ExpertOptions,
+    holds_past_success=True,
     summary="the task's scripted expert (no person, no display needed), under DART noise by default",
     build=build_expert)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import sys
@@ -115,24 +116,31 @@ def default_script() -> list[Command]:
     return [Command(idle()) for _ in range(BUILTIN_IDLE_STEPS)] + [Command(idle(), discard=True)]
 
 
+@dataclasses.dataclass(frozen=True)
+class ScriptedOptions:
+    """The scripted device's flag."""
+
+    scripted_json: str | None = None
+    """the events' file (`SCRIPT_FORMAT`); None: the built-in test pattern."""
+
+
 def add_scripted_arguments(p: Any) -> None:
     p.add_argument("--scripted-json", default=None, metavar="FILE", help=SCRIPT_FORMAT)
 
 
 def build_scripted(context: DeviceContext) -> ScriptedDevice:
-    args = context.args
-    path = getattr(args, "scripted_json", None)
+    path = context.options_for(ScriptedOptions).scripted_json
     if path:
         events = load_script(path)
         print(f"scripted: {len(events)} events from {path}, one per control tick; the list runs "
               "on across attempts and the session quits when it runs out", file=sys.stderr)
     else:
         events = default_script()
-        print(builtin_notice(args.keep_failures, args.max_steps), file=sys.stderr)
+        print(builtin_notice(context.keep_failures, context.max_steps), file=sys.stderr)
     return ScriptedDevice(events, log=lambda text: print(text, flush=True))
 
 
 KIND = DeviceKind(
-    name="scripted", human=False, legend=(), add_arguments=add_scripted_arguments,
+    name="scripted", human=False, legend=(), add_arguments=add_scripted_arguments, options=ScriptedOptions,
     summary="events from --scripted-json, one per tick (a test device; no person)",
     build=build_scripted)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import os
 from collections.abc import Callable, Mapping
@@ -13,7 +12,7 @@ import numpy as np
 from fetch._environ import environ
 from fetch._gl import has_display
 from fetch.errors import FetchError
-from fetch.teleop.devices import Command, DeviceKind, idle
+from fetch.teleop.devices import FRAMES, Command, DeviceContext, DeviceKind, idle
 from fetch.teleop.gamepad.config import (
     AXES,
     BUTTONS,
@@ -21,8 +20,9 @@ from fetch.teleop.gamepad.config import (
     OPTIONAL_CONTROLS,
     STICK_AXES,
     GamepadConfig,
+    PadFlags,
     add_gamepad_arguments,
-    config_from_args,
+    config_from_flags,
 )
 from fetch.teleop.gamepad.mapping import Mapper, PadState
 
@@ -231,22 +231,28 @@ class GamepadDevice:
         self.pad.close()
 
 
-def gamepad_from_args(args: argparse.Namespace, yaw: Callable[[], float] | None = None) -> GamepadDevice:
-    return GamepadDevice(config_from_args(args), yaw)
+def gamepad_from_flags(flags: PadFlags, yaw: Callable[[], float] | None = None) -> GamepadDevice:
+    """The pad its flags (`PadFlags`) describe, steering by `yaw` (None: the world's axes)."""
+    return GamepadDevice(config_from_flags(flags), yaw)
+
+
+def build_gamepad(context: DeviceContext) -> GamepadDevice:
+    return gamepad_from_flags(context.options_for(PadFlags), yaw=context.yaw)
 
 
 def add_collect_arguments(p: Any) -> None:
-    """The collector's gamepad flags: collect_fetch_demo.py's, and which way the stick steers."""
+    """The collector's gamepad flags: collect_fetch_demo.py's (`PadFlags`), and which way the stick steers
+    (--frame, which the session reads: the keyboard steers by it too)."""
     add_gamepad_arguments(p)
-    p.add_argument("--frame", default="camera", choices=["camera", "world"],
+    p.add_argument("--frame", default="camera", choices=list(FRAMES),
                    help="camera (default): stick 'up' moves away from the viewer; world: stick up = the world's +y "
                         "whatever the view (collect_fetch_demo.py's mapping)")
 
 
 KIND = DeviceKind(
-    name="gamepad", human=True, aliases=("xbox",), add_arguments=add_collect_arguments,
+    name="gamepad", human=True, aliases=("xbox",), add_arguments=add_collect_arguments, options=PadFlags,
     summary="an Xbox (or any SDL) game pad; xbox is another name for it",
-    build=lambda context: gamepad_from_args(context.args, yaw=context.yaw),
+    build=build_gamepad,
     legend=("left stick: move x/y", "RT/LT: up/down", "X: open/close gripper", "RB hold: precision",
             "BACK: rewind 1 s (hold: more)", "LB: camera", "F11: full screen", "B: keep attempt", "Y: discard",
             "START: quit"))

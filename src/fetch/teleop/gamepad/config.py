@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import math
@@ -175,19 +174,41 @@ class GamepadConfig:
             f.write("\n")
 
 
-def config_from_args(args: argparse.Namespace) -> GamepadConfig:
-    """The config of collect_fetch_demo.py's pad flags, on top of `args.profile` if given; a flag left at its default
-    value does not override the profile."""
-    profile = getattr(args, "profile", None)
-    base = GamepadConfig.from_profile(profile) if profile else GamepadConfig()
+@dataclasses.dataclass(frozen=True)
+class PadFlags:
+    """The pad's flags as given (`add_gamepad_arguments`: collect_fetch_demo.py's, plus --profile and
+    --precision-scale); `config_from_flags` lays them over the profile. The gamepad device's options."""
+
+    profile: str | None = None
+    """a profile written by `gym-fetch gamepad --calibrate` (None: none)."""
+    deadzone: float = GamepadConfig.deadzone
+    pos_scale: float = GamepadConfig.pos_scale
+    precision_scale: float = GamepadConfig.precision_scale
+    invert_y: bool = GamepadConfig.invert_y
+    gripper_open: float = GamepadConfig.gripper_open
+    gripper_close: float = GamepadConfig.gripper_close
+    axis_lx: int | None = None
+    """raw joystick indices (None: the SDL layout's, or the profile's)."""
+    axis_ly: int | None = None
+    axis_lt: int | None = None
+    axis_rt: int | None = None
+    button_x: int | None = None
+    button_y: int | None = None
+    button_start: int | None = None
+
+
+def config_from_flags(flags: PadFlags) -> GamepadConfig:
+    """The config of collect_fetch_demo.py's pad flags, on top of `flags.profile` if given; a flag left at its
+    default value does not override the profile."""
+    base = GamepadConfig.from_profile(flags.profile) if flags.profile else GamepadConfig()
     defaults = GamepadConfig()
     changes: dict[str, Any] = {}
     for field in ("deadzone", "pos_scale", "invert_y", "gripper_open", "gripper_close", "precision_scale"):
-        value = getattr(args, field, None)
+        value = getattr(flags, field)
         if value is not None and value != getattr(defaults, field):
             changes[field] = value
     for field in ("axis_lx", "axis_ly", "axis_lt", "axis_rt", "button_x", "button_y", "button_start"):
-        value = getattr(args, field, None)
+        value = getattr(flags, field)
         if value is not None:
             changes[field] = value
     return dataclasses.replace(base, **changes)
@@ -204,8 +225,9 @@ def legend(config: GamepadConfig) -> list[str]:
     return lines
 
 
-def add_gamepad_arguments(p: argparse.ArgumentParser | Any) -> None:
-    """collect_fetch_demo.py's gamepad flags (same names and meaning) plus --profile and --precision-scale."""
+def add_gamepad_arguments(p: Any) -> None:
+    """collect_fetch_demo.py's gamepad flags (same names and meaning) plus --profile and --precision-scale, added to
+    a parser or group of the command layer; each flag's destination is a field of `PadFlags`."""
     p.add_argument("--profile", default=None,
                    help="a mapping profile written by `gym-fetch gamepad --calibrate` (default: none)")
     p.add_argument("--deadzone", type=float, default=0.10,

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -14,39 +14,39 @@ import numpy as np
 
 from fetch.errors import FetchError
 from fetch.teleop.devices import Command
-from fetch.teleop.gamepad.backend import DISCONNECTED, GamepadDevice, RawReading, _Pad, gamepad_from_args
+from fetch.teleop.gamepad.backend import DISCONNECTED, GamepadDevice, RawReading, _Pad, gamepad_from_flags
 from fetch.teleop.gamepad.config import (
     CONTROLS,
     OPTIONAL_CONTROLS,
     STICK_AXES,
     GamepadConfig,
-    add_gamepad_arguments,
-    config_from_args,
+    PadFlags,
+    config_from_flags,
     legend,
 )
 
 
-def add_gamepad_parser(subparsers: Any) -> argparse.ArgumentParser:
-    """The `gamepad` subcommand: live view of the pad, or a guided calibration that writes a profile."""
-    p: argparse.ArgumentParser = subparsers.add_parser(
-        "gamepad", help="show what the pad sends (axes, buttons, the action), or calibrate it (--calibrate)")
-    add_gamepad_arguments(p)
-    p.add_argument("--seconds", type=float, default=0.0,
-                   help="stop after this long [s] (default 0: until START or Ctrl-C)")
-    p.add_argument("--calibrate", action="store_true", help="guided mapping of each control; needs --out")
-    p.add_argument("--out", default=None, help="the profile file --calibrate writes (JSON)")
-    p.set_defaults(run=run_gamepad_tool)
-    return p
+@dataclasses.dataclass(frozen=True)
+class PadToolRequest:
+    """What `gym-fetch gamepad` asks for: the live view of the pad for `seconds` (0: until START or Ctrl-C),
+    or with `calibrate` the guided calibration that writes the profile `out`."""
+
+    pad: PadFlags = PadFlags()
+    seconds: float = 0.0
+    """[s]"""
+    calibrate: bool = False
+    out: str | os.PathLike[str] | None = None
 
 
-def run_gamepad_tool(args: argparse.Namespace) -> int:
-    if args.calibrate:
-        if not args.out:
+def run_gamepad_tool(request: PadToolRequest) -> int:
+    """`gym-fetch gamepad`: the live view or the calibration; the exit status."""
+    if request.calibrate:
+        if not request.out:
             raise FetchError("--calibrate needs --out PROFILE.json (the file to write)")
-        return _run_calibration(args)
-    device = gamepad_from_args(args)
+        return _run_calibration(request.pad, request.out)
+    device = gamepad_from_flags(request.pad)
     try:
-        return _live_view(device, float(getattr(args, "seconds", 0.0) or 0.0), sys.stdout)
+        return _live_view(device, float(request.seconds or 0.0), sys.stdout)
     finally:
         device.close()
 
@@ -188,8 +188,8 @@ def calibrate(pad: _Pad, base: GamepadConfig, say: Callable[[str, str], None],
     return dataclasses.replace(base, **changes)
 
 
-def _run_calibration(args: argparse.Namespace) -> int:
-    base = config_from_args(args)
+def _run_calibration(flags: PadFlags, out: str | os.PathLike[str]) -> int:
+    base = config_from_flags(flags)
     pad = _Pad(base, any_pad=True)
     print(f"calibrating {pad.name!r}: do each thing when asked (Ctrl-C to abort; nothing is written)")
 
@@ -204,8 +204,8 @@ def _run_calibration(args: argparse.Namespace) -> int:
         return 130
     finally:
         pad.close()
-    config.save_profile(args.out, pad=pad.name)
-    print(f"wrote {args.out}; use it with --profile {args.out}")
+    config.save_profile(out, pad=pad.name)
+    print(f"wrote {out}; use it with --profile {out}")
     for line in legend(config):
         print("  " + line)
     return 0

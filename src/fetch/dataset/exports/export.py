@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 
+from fetch._durable import lock_directory, unlock_directory
 from fetch.dataset import npz, schema
 from fetch.dataset.dirs import env_dir, recover_replaced, replacing_dir, require_apart
-from fetch.dataset.durable import lock_directory, unlock_directory
 from fetch.dataset.episode import Demo
 from fetch.dataset.reader import Dataset, one_line, open_dataset
 from fetch.dataset.validation import require_valid
@@ -355,8 +355,8 @@ def export_lerobot(ds_path: str | os.PathLike[str], repo_id: str, out: str | os.
     """Write the selected demos as the LeRobotDataset v3.0 `repo_id` in `out` (default: where LeRobot looks
     for it, $HF_LEROBOT_HOME/<repo_id>), with videos of `cameras` (default: the recorded ones, else front
     and wrist) rendered from the saved states at `image_size` (default: the recorded size, else 128) pixels."""
-    from fetch.dataset import lerobot, lerobot_writer
-    from fetch.dataset.render_obs import default_workers
+    from fetch.dataset.exports import lerobot, lerobot_writer
+    from fetch.dataset.replay.render_obs import default_workers
 
     lerobot.check_repo_id(repo_id)
     with open_dataset(ds_path) as ds:

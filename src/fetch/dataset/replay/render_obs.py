@@ -1,4 +1,4 @@
-"""`gym-fetch render-obs`: add a camera's images to every demo of a dataset, from its saved states.
+"""Add a camera's images to every demo of a dataset, from its saved states (`gym-fetch render-obs`).
 
 Worker processes (one per core) each hold the env and an offscreen renderer, restore a demo's
 states and render them; this process writes the images. Only the new arrays and the layout
@@ -8,7 +8,6 @@ failed or interrupted run leaves the dataset as it was.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import os
 import pathlib
@@ -19,15 +18,15 @@ from typing import Any
 import h5py
 import numpy as np
 
-from fetch._durable import NO_ROOM, why
+from fetch._durable import NO_ROOM, Rewrites, why
 from fetch._progress import progress
 from fetch.dataset import schema
 from fetch.dataset.demo_file import storage
-from fetch.dataset.durable import Rewrites, editing
-from fetch.dataset.reader import FILE_HELP, open_dataset, resolve
+from fetch.dataset.holding import editing
+from fetch.dataset.reader import open_dataset, resolve
 from fetch.dataset.validation import require_valid
 from fetch.errors import DatasetError, FetchError
-from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES, QUALITY_HELP, check_image_quality, check_image_size
+from fetch.rendering import DEFAULT_IMAGE_QUALITY, check_image_quality, check_image_size
 from fetch.stopping import raise_if_stopped
 
 
@@ -49,7 +48,7 @@ def default_workers() -> int:
     return usable_cores()
 
 
-# -- the command ----------------------------------------------------------------------------------
+# -- rendering ------------------------------------------------------------------------------------
 
 def _store(group: h5py.Group, key: str, images: np.ndarray) -> None:
     for prefix, rows in (("obs", images[:-1]), ("next_obs", images[1:])):
@@ -92,7 +91,7 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
                              f"dataset has one image quality, so use --quality {layout.image_quality}")
         if camera in layout.cameras and not overwrite:
             raise FetchError(f"{index} already has {schema.image_key(camera)}; pass --overwrite to render it again")
-        from fetch.dataset.frames import check_env_camera
+        from fetch.dataset.render.frames import check_env_camera
 
         check_env_camera(env_id, env_kwargs, camera)  # before any work
         start = time.perf_counter()
@@ -122,7 +121,7 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
 def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size: int, quality: str, camera: str,
               names: list[str], workers: int) -> Iterator[tuple[str, np.ndarray]]:
     """(name, images) in the order of `names`, rendered by `workers` processes."""
-    from fetch.dataset.render_ahead import render_ahead
+    from fetch.dataset.render.render_ahead import render_ahead
 
     with open_dataset(index) as ds:
         jobs = ((name, ds.demo(name)["states"][()], schema.episode_seed(ds.attrs(name))) for name in names)
@@ -135,23 +134,3 @@ def _rendered(index: pathlib.Path, env_id: str, env_kwargs: dict[str, Any], size
 def describe(report: RenderReport, camera: str, path: str) -> str:
     return (f"rendered {camera} for {report.demos} demo(s): {report.frames} frames in {report.seconds:.1f} s "
             f"({report.frames_per_second:.0f} frames/s, {report.workers} worker process(es)) into {path}")
-
-
-def add_render_obs_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    o = sub.add_parser("render-obs", help="add a camera's images to every demo, rendered from the saved states")
-    o.add_argument("file", help=FILE_HELP)
-    o.add_argument("--camera", required=True, help="a camera of the env, e.g. front or wrist")
-    o.add_argument("--size", type=int, default=84, help="image width and height [px] (default 84)")
-    o.add_argument("--quality", default=None, choices=IMAGE_QUALITIES,
-                   help=QUALITY_HELP.replace("the default", "the default for a dataset without images; one with "
-                                             "images keeps theirs"))
-    o.add_argument("--workers", type=int, default=None, help="render processes (default: one per core)")
-    o.add_argument("--overwrite", action="store_true", help="render a camera the dataset already has again")
-    o.set_defaults(run=run_render_obs)
-
-
-def run_render_obs(args: argparse.Namespace) -> int:
-    report = render_obs(args.file, args.camera, args.size, workers=args.workers, overwrite=args.overwrite,
-                        quality=args.quality)
-    print(describe(report, args.camera, args.file))
-    return 0

@@ -1,18 +1,15 @@
-"""Re-simulating saved demos: from their seed and from their saved states, compared bit for bit; and
-`gym-fetch replay`, which does that or renders them to video."""
+"""Re-simulating saved demos: from their seed and from their saved states, compared bit for bit (the one
+replay of every recorded format; `gym-fetch replay` runs it through `replay/replaying.py`)."""
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import math
-import pathlib
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from fetch.dataset.reader import FILE_HELP, Dataset
+from fetch.dataset.reader import Dataset
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,89 +120,3 @@ def resimulate(name: str, env: Any, seed: int, actions: np.ndarray, states: np.n
     return ReplayCheck(name=name, steps=len(actions), reset=reset, observations=observations,
                        states=largest_difference(replayed_states, states[1:], "states", row_offset=1),
                        success_recorded=success_recorded, success_replayed=success)
-
-
-def add_replay_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    r = sub.add_parser("replay", help="re-simulate demos and compare them with what was recorded, or render "
-                                      "them to video")
-    r.add_argument("file", help=FILE_HELP)
-    r.add_argument("--demo", default=None, help="a demo index or name, e.g. 3 or demo_3 (default: all)")
-    r.add_argument("--check", action="store_true",
-                   help="compare observations and states bit for bit (what replay does without --video)")
-    r.add_argument("--verbose", action="store_true", help="a line per demo, exact or not")
-    r.add_argument("--video", default=None, metavar="OUT",
-                   help="render the saved states to OUT (.mp4 or .gif), one frame per state; with several demos "
-                        "one file each, named OUT_demo_<i>")
-    r.add_argument("--camera", default="front", help="the video's camera: front (default), side, behind or wrist")
-    r.add_argument("--size", type=int, default=480, help="video width and height [px] (default 480)")
-    r.add_argument("--fps", type=float, default=None, help="frames per second (default: the control rate, 25)")
-    r.set_defaults(run=run_replay)
-
-
-def run_replay(args: argparse.Namespace) -> int:
-    if args.video:
-        status = run_video(args)
-        if not args.check:
-            return status
-    return run_check(args)
-
-
-def run_video(args: argparse.Namespace) -> int:
-    from fetch._progress import progress
-    from fetch.dataset.frames import StateRenderer
-    from fetch.dataset.recordings import open_recording
-    from fetch.dataset.video import check_video_path, write_video
-    from fetch.errors import FetchError
-
-    if args.fps is not None and not (math.isfinite(args.fps) and args.fps > 0):
-        raise FetchError(f"--fps must be a positive number of frames per second, got {args.fps}")
-    out = check_video_path(args.video, args.size, args.size)
-    with open_recording(args.file, args.demo) as recording:
-        recording.require_valid()
-        with StateRenderer(recording.env_id, recording.env_kwargs, args.size, args.size) as renderer:
-            renderer.check_camera(args.camera)
-            fps = args.fps or 1.0 / renderer.env.dt
-            for name in recording.names:
-                path = out if len(recording.names) == 1 else out.with_name(f"{out.stem}_{name}{out.suffix}")
-                states = recording.states(name)
-                looks = renderer.looks(recording.seed(name))
-                frames = (renderer.frame(state, args.camera, looks) for state in states)
-                count = write_video(path, progress(frames, len(states), f"video {name}", unit="frames"), fps,
-                                    args.size, args.size)
-                print(f"{name}: {count} frames ({len(states) - 1} steps and the final state) at {fps:g} fps, "
-                      f"camera {args.camera} -> {pathlib.Path(path)}")
-    return 0
-
-
-def run_check(args: argparse.Namespace) -> int:
-    from fetch._progress import progress
-    from fetch.dataset.recordings import open_recording
-
-    with open_recording(args.file, args.demo) as recording:
-        recording.require_valid()
-        names = recording.names
-        env = recording.replay_env()
-        if note := recording.note(env):
-            print(note)
-        return _report(args, names, progress((recording.check(name, env) for name in names), len(names), "replay"),
-                       env)
-
-
-def _report(args: argparse.Namespace, names: list[str], checks: Any, env: Any) -> int:
-    failures = 0
-    largest: tuple[float, str] = (0.0, "")
-    for r in checks:
-        ok = r.exact and r.success_recorded == r.success_replayed
-        failures += not ok
-        dev = r.largest
-        if dev.value >= largest[0]:
-            largest = (dev.value, f"{r.name} {dev.where}")
-        if not ok or args.verbose:
-            success = "" if r.success_recorded == r.success_replayed else \
-                f"; success recorded {r.success_recorded}, replayed {r.success_replayed}"
-            verdict = "exact" if r.exact else f"DEVIATES; largest deviation {dev.value:.3g} at {dev.where}"
-            print(f"{r.name}: {r.steps} steps, {verdict}{success}")
-    env.close()
-    print(f"replayed {len(names)} demo(s): {len(names) - failures} exact, {failures} deviating; largest "
-          f"deviation {largest[0]:.3g}" + (f" ({largest[1]})" if largest[0] else ""))
-    return 1 if failures else 0

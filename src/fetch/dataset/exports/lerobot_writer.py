@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from fetch._durable import NO_ROOM, why
-from fetch.dataset import lerobot
-from fetch.dataset.lerobot import video_key
+from fetch.dataset.exports import lerobot
+from fetch.dataset.exports.lerobot import video_key
 from fetch.dataset.reader import Dataset
 from fetch.dataset.schema import episode_seed
 from fetch.errors import FetchError
@@ -277,7 +277,7 @@ def _rendered(ds: Dataset, names: Sequence[str], cameras: Sequence[str], size: i
     if not cameras:
         yield from ({} for _ in names)
         return
-    from fetch.dataset.render_ahead import render_ahead
+    from fetch.dataset.render.render_ahead import render_ahead
 
     jobs = ((name, ds.demo(name)["states"][:-1], episode_seed(ds.attrs(name))) for name in names)
     for images in render_ahead(ds.env_id, ds.env_kwargs, size, workers, jobs, cameras, lerobot.IMAGE_QUALITY):

@@ -34,7 +34,7 @@ def render_ahead(env_id: str, env_kwargs: dict[str, Any], size: int, workers: in
     """For each (demo name, its states (N, state size), its reset seed), the images per camera ((N, size, size, 3)
     uint8, drawn at `quality`), in order; None for None. At most 2 x `workers` demos are in flight, not every demo's
     images at once. A worker that dies is replaced `RESTARTS` times at most (said on stderr)."""
-    from fetch.dataset.frames import RenderPool
+    from fetch.dataset.render.frames import RenderPool
 
     workers = max(1, workers)
     source = iter(jobs)

@@ -1,41 +1,39 @@
-"""`gym-fetch train` and `gym-fetch eval`: their flags and what they run (torch is imported only then)."""
+"""`gym-fetch train`: its flags, and the training job they ask for (`fetch.learn.jobs.train_datasets`; torch
+is imported only then)."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
-import pathlib
 from collections.abc import Callable
 from typing import Any
 
-from fetch._progress import said_if_slow
-from fetch.errors import FetchError
-from fetch.learn import TORCH_INSTALL, require_torch
-from fetch.learn.kinds import FINGER_SCALE, FINGER_SPAN, INPUTS, KINDS, POLICY_KINDS
-from fetch.learn.settings import ACCELERATORS, AUTO, CORRECTION_WEIGHT, PRECISIONS, TrainRequest, sees_pixels
-from fetch.looks import LOOKS
-from fetch.tasks import REGISTRATIONS, Training, mirroring_ids
+from fetch.learn import TORCH_INSTALL
+from fetch.learn.kinds import AUTO, FINGER_SCALE, FINGER_SPAN, INPUTS, KINDS, POLICY_KINDS, pixel_kind
+from fetch.learn.recipes import Training, task_training
+from fetch.learn.settings import ACCELERATORS, CORRECTION_WEIGHT, PRECISIONS, TrainRequest
+from fetch.tasks import ENV_IDS, mirroring_ids
 
 
 def _auto_tasks(differs: Callable[[Training], Any]) -> str:
-    """The tasks whose training defaults (the task table's `Training`) `differs` picks out, comma-separated."""
-    return ", ".join(r.env_id for r in REGISTRATIONS if differs(r.training))
+    """The tasks whose training defaults (their recipe, `fetch.learn.recipes`) `differs` picks out, comma-separated."""
+    return ", ".join(env_id for env_id in ENV_IDS if differs(task_training(env_id)))
 
 
 def _auto_values(field: str) -> str:
     """'VALUE on TASK, ...' for the tasks whose default for `field` is not `Training`'s."""
     plain = getattr(Training(), field)
-    return ", ".join(f"{getattr(r.training, field)} on {r.env_id}" for r in REGISTRATIONS
-                     if getattr(r.training, field) not in (plain, None))
+    return ", ".join(f"{getattr(task_training(env_id), field)} on {env_id}" for env_id in ENV_IDS
+                     if getattr(task_training(env_id), field) not in (plain, None))
 
 
 def _pixel_training(field: str) -> Any:
     """The pixel kind's default for a training setting."""
-    return next(k.training[field] for k in KINDS if k.inputs == "pixels")
+    return pixel_kind().training[field]
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
+    """`gym-fetch train`'s flags."""
     p.add_argument("dataset", nargs="+",
                    help="a dataset directory (from gym-fetch collect) or file (e.g. from merge); several of one task "
                         "are learnt from together (the demos and the attempts a person corrected)")
@@ -120,84 +118,15 @@ def _camera_list(text: str) -> tuple[str, ...]:
     return tuple(c.strip() for c in text.split(",") if c.strip())
 
 
-def run_train(args: argparse.Namespace) -> int:
-    require_torch()
-    from fetch.learn import checkpoint
-    from fetch.learn.data import load_many
-    from fetch.learn.train import train
+def run(args: argparse.Namespace) -> int:
+    from fetch.learn.jobs import TrainJob, train_datasets
 
     request = TrainRequest(**{f.name: getattr(args, f.name) for f in dataclasses.fields(TrainRequest)})
-    base = checkpoint.read(request.start_from) if request.start_from is not None else None
-    with said_if_slow(f"reading {', '.join(args.dataset)} ..."):
-        demos = load_many(args.dataset, args.correction_weight, images=sees_pixels(request, base))
-    result = train(demos, args.out, request)
-    policy, config = result.plan.policy, result.plan.config
-    valid = "none (no valid split)" if result.valid_loss is None else f"{result.valid_loss:.4f}"
-    resumed = f", resumed at step {result.resumed_from}" if result.resumed_from else ""
-    members = f" ({policy.members} members)" if policy.members > 1 else ""
-    mirrored = " and their mirror images" if config.mirror else ""
-    mirrored += f", seeing {', '.join(policy.cameras)}" if policy.cameras else ""
-    mirrored += ", not seeing velocities" if policy.blind and not policy.cameras else ""
-    print(f"trained {policy.kind}{members} on {len(demos.train[:config.demos or None])} {demos.env_id} demos"
-          f"{mirrored} for {result.steps} steps{resumed}: train loss {result.train_loss:.4f}, valid loss {valid}; "
-          f"evaluate with: gym-fetch eval {args.out}")
+    print(train_datasets(TrainJob(tuple(args.dataset), args.out, request, args.correction_weight)))
     return 0
 
 
-def add_eval_arguments(p: argparse.ArgumentParser) -> None:
-    from fetch.learn.evaluate import EVAL_SEED_START
-
-    p.add_argument("run_dir", metavar="RUN", help="a run directory from gym-fetch train")
-    p.add_argument("--episodes", type=int, default=100, help="episodes to run (default 100)")
-    p.add_argument("--envs", type=int, default=50, help="episodes stepped at once (default 50)")
-    p.add_argument("--seed-start", type=int, default=EVAL_SEED_START,
-                   help=f"evaluation seeds count up from here, skipping the dataset's (default {EVAL_SEED_START})")
-    p.add_argument("--video", default=None, metavar="DIR", help="also write mp4s of the first --videos episodes here")
-    p.add_argument("--videos", type=int, default=3, help="how many episodes --video records (default 3)")
-    p.add_argument("--camera", default="front", help="the videos' camera: front (default), side, behind or wrist")
-    p.add_argument("--json", default=None, metavar="FILE", help="also write the per-episode results as JSON")
-    p.add_argument("--looks", default=None, choices=LOOKS,
-                   help="the scene's looks in the episodes' images: plain (as modelled) or random (colours, lights "
-                        "and camera mounts drawn per episode from its seed, so unseen ones; docs/rendering.md); "
-                        "default: those of the policy's training data")
-
-
-def run_eval(args: argparse.Namespace) -> int:
-    require_torch()
-    from fetch.learn.evaluate import evaluate, record_videos
-    from fetch.learn.runtime import load
-
-    if args.seed_start < 0:
-        raise FetchError(f"--seed-start must be a whole number >= 0, got {args.seed_start}")
-    if args.video is not None and args.videos < 1:
-        raise FetchError(f"--videos must be a whole number >= 1, got {args.videos}")
-    if args.video is not None:
-        from fetch.dataset.video import require_pyav
-
-        require_pyav()  # before the episodes, not after them
-    policy = load(args.run_dir)
-    if args.looks is not None:
-        policy.env_kwargs = {**policy.env_kwargs, "looks": args.looks}
-    if args.video is not None:
-        from fetch.dataset.frames import check_env_camera
-
-        check_env_camera(policy.env_id, policy.env_kwargs, args.camera)
-    result = evaluate(policy, args.episodes, envs=args.envs, seed_start=args.seed_start)
-    print(result.describe())
-    if args.json is not None:
-        pathlib.Path(args.json).write_text(json.dumps(result.as_dict(), indent=1))
-    if args.video is not None:
-        written = record_videos(policy, list(result.seeds[:args.videos]), args.video, camera=args.camera)
-        print(f"videos: {', '.join(str(p) for p in written)}")
-    return 0
-
-
-def add_learn_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """The `train` and `eval` subcommands."""
+def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     t = sub.add_parser("train", help=f"train a policy on a dataset (needs torch: {TORCH_INSTALL})")
     add_train_arguments(t)
-    t.set_defaults(run=run_train)
-    e = sub.add_parser("eval", help="run a trained policy on seeds its dataset never used: success with a 95%% "
-                                    "interval, mean episode length, videos")
-    add_eval_arguments(e)
-    e.set_defaults(run=run_eval)
+    t.set_defaults(run=run)

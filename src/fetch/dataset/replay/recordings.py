@@ -1,5 +1,5 @@
-"""A recording, whatever format `collect` wrote it in: one reader per format behind one interface; and
-`gym-fetch info`.
+"""A recording, whatever format `collect` wrote it in: one reader per format behind one interface; and what
+`gym-fetch info` prints of it (`inspect_recording`).
 
 `info` and `replay` open a path with `open_recording` and ask the `Recording` what they need (a
 summary, its problems, its demos' states, a bit-for-bit check of each), never which format it is.
@@ -8,10 +8,10 @@ A new format is a `Recording` class here and one line in `READERS`.
 
 from __future__ import annotations
 
-import argparse
 import collections
 import contextlib
 import dataclasses
+import json
 import os
 import pathlib
 from collections.abc import Callable, Iterator
@@ -20,8 +20,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from fetch.dataset import npz
-from fetch.dataset.reader import FILE_HELP, Dataset, open_dataset
-from fetch.dataset.replay import ReplayCheck, check_demo, make_replay_env, other_model
+from fetch.dataset.reader import Dataset, open_dataset
+from fetch.dataset.replay.check import ReplayCheck, check_demo, make_replay_env, other_model, resimulate
 from fetch.dataset.schema import episode_seed
 from fetch.dataset.validation import require_valid, validate
 from fetch.errors import FetchError
@@ -178,7 +178,17 @@ class NpzRecording:
         return None  # collect_fetch_demo.py's files record no model hash
 
     def check(self, name: str, env: Any) -> ReplayCheck:
-        return npz.check_npz(self.demos[name], env)
+        return check_npz(self.demos[name], env)
+
+
+def check_npz(demo: npz.NpzDemo, env: Any) -> ReplayCheck:
+    """Replay one file as `replay --check` does an HDF5 demo (`replay.check.resimulate`)."""
+    a = demo.arrays
+    keys = [k[len("obs__"):] for k in a if k.startswith("obs__")]
+    recorded = any(float(i.get("is_success", 0.0)) >= 1.0 for i in json.loads(str(a["info_json"])))
+    return resimulate(demo.path.name, env, int(demo.metadata["seed"]), a["action"], a["states"],
+                      first={k: a[f"obs__{k}"][:1] for k in keys}, recorded_next={k: a[f"obs__{k}"][1:] for k in keys},
+                      success_recorded=recorded)
 
 
 def _open_npz(path: pathlib.Path, demo: str | None) -> contextlib.AbstractContextManager[Recording]:
@@ -213,25 +223,17 @@ def open_recording(path: str | os.PathLike[str],
     return next(r for r in READERS if r.holds(p)).open(p, demo)
 
 
-def add_info_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    i = sub.add_parser("info", help="summarise and validate a dataset; non-zero exit if it is inconsistent")
-    i.add_argument("file", help=FILE_HELP)
-    i.set_defaults(run=run_info)
+@dataclasses.dataclass(frozen=True)
+class RecordingInfo:
+    """What `gym-fetch info` says of a recording."""
+
+    summary: tuple[str, ...]
+    """its lines (the first names the path)."""
+    problems: tuple[str, ...]
+    """what is wrong with it, one line each (none: valid)."""
 
 
-def run_info(args: argparse.Namespace) -> int:
-    with open_recording(args.file) as recording:
-        print("\n".join(recording.summary()))
-        problems = recording.problems()
-    return _verdict(problems)
-
-
-def _verdict(problems: list[str]) -> int:
-    """Print `valid`, or the problems (the first 50); the exit status of `info`."""
-    if problems:
-        print(f"INVALID: {len(problems)} problem(s):")
-        for p in problems[:50]:
-            print(f"  - {p}")
-        return 1
-    print("valid")
-    return 0
+def inspect_recording(path: str | os.PathLike[str]) -> RecordingInfo:
+    """The summary and the problems of the recording at `path`, whichever format it is in."""
+    with open_recording(path) as recording:
+        return RecordingInfo(tuple(recording.summary()), tuple(recording.problems()))

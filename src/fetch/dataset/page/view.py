@@ -1,4 +1,4 @@
-"""`gym-fetch view`: a static web page of a dataset (opens from disk, no server, no network).
+"""A static web page of a dataset (`gym-fetch view`; it opens from disk, no server, no network).
 
 The page lists every demo with a looping video rendered from its saved states, its length, seed,
 device, session and success/valid flags, draws the selected demo's actions and observations over
@@ -8,7 +8,6 @@ time, and histograms of lengths and of success per device and per session. It is
 
 from __future__ import annotations
 
-import argparse
 import collections
 import dataclasses
 import datetime
@@ -20,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from fetch.dataset.habits import FLAG_KINDS, dataset_flags
-from fetch.dataset.reader import FILE_HELP, READ_ERRORS, Dataset, one_line, open_dataset, runs
+from fetch.dataset.reader import READ_ERRORS, Dataset, one_line, open_dataset, runs
 from fetch.dataset.schema import episode_seed
 from fetch.dataset.validation import validate
 from fetch.errors import DatasetError, FetchError
@@ -117,17 +116,20 @@ def series(arrays: dict[str, np.ndarray], obs_layout: dict[str, slice]) -> dict[
 
 def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, camera: str = "front",
                size: int = 128, workers: int | None = None, force: bool = False) -> ViewReport:
-    """Write the page (`index.html`), one mp4 per demo (`videos/`) and the demos' series (`data/`) to `out`."""
+    """Write the page (`index.html`), one mp4 per demo (`videos/`) and the demos' series (`data/`) to `out`, the
+    videos `size` pixels square, rendered by `workers` processes (None: one per core)."""
     import gymnasium as gym
 
     import fetch  # noqa: F401  (registers the ids)
     from fetch._progress import progress
     from fetch.dataset.dirs import replacing_dir, require_apart
-    from fetch.dataset.frames import check_env_camera
-    from fetch.dataset.render_obs import default_workers
-    from fetch.dataset.video import check_video_path
-    from fetch.dataset.view_page import data_script, page
+    from fetch.dataset.page.view_page import data_script, page
+    from fetch.dataset.render.frames import check_env_camera
+    from fetch.dataset.render.video import check_video_path
+    from fetch.dataset.replay.render_obs import default_workers
 
+    if workers is not None and workers < 1:
+        raise FetchError(f"--workers must be at least 1, got {workers}")
     check_image_size(size, "--size")
     if size % 2:
         raise FetchError(f"--size must be an even number of pixels (H.264 video), got {size}")
@@ -183,7 +185,7 @@ def build_view(ds_path: str | os.PathLike[str], out: str | os.PathLike[str], *, 
 
 def _frames(ds: Dataset, names: list[str], camera: str, size: int, workers: int) -> Iterator[np.ndarray | None]:
     """Each demo's images of every saved state (None where the states cannot be read or are not finite)."""
-    from fetch.dataset.render_ahead import render_ahead
+    from fetch.dataset.render.render_ahead import render_ahead
 
     def states(name: str) -> np.ndarray | None:
         try:
@@ -200,7 +202,7 @@ def _frames(ds: Dataset, names: list[str], camera: str, size: int, workers: int)
 
 
 def _video(path: pathlib.Path, images: np.ndarray, fps: int, size: int) -> None:
-    from fetch.dataset.video import write_video
+    from fetch.dataset.render.video import write_video
 
     write_video(path, iter(images), fps, size, size)
 
@@ -210,25 +212,3 @@ def describe(report: ViewReport) -> str:
     problems = f", {report.file_problems} problem(s) of the file" if report.file_problems else ""
     return (f"wrote a page of {report.demos} demo(s) ({report.videos} videos, {report.invalid} invalid{problems}) to "
             f"{index}; open it in a browser (file://{index.resolve()})")
-
-
-def add_view_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """The `view` subcommand."""
-    p = sub.add_parser("view", help="write a static web page of a dataset: a looping video per demo, plots of "
-                                    "actions and observations, histograms of length and success")
-    p.add_argument("file", help=FILE_HELP)
-    p.add_argument("--out", required=True, metavar="DIR", help="the page's directory (index.html, videos/, data/)")
-    p.add_argument("--camera", default="front", help="the videos' camera: front (default), side, behind or wrist")
-    p.add_argument("--size", type=int, default=128, help="video width and height [px] (default 128)")
-    p.add_argument("--workers", type=int, default=None, help="render processes (default: one per core)")
-    p.add_argument("--force", action="store_true", help="replace --out if it is not empty")
-    p.set_defaults(run=run_view)
-
-
-def run_view(args: argparse.Namespace) -> int:
-    if args.workers is not None and args.workers < 1:
-        raise FetchError(f"--workers must be at least 1, got {args.workers}")
-    report = build_view(args.file, args.out, camera=args.camera, size=args.size, workers=args.workers,
-                        force=args.force)
-    print(describe(report))
-    return 0
