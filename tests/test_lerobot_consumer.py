@@ -7,6 +7,8 @@ scripts/make_lerobot_venv.sh, scripts/make_lerobot06_venv.sh), and is skipped in
 from __future__ import annotations
 
 import pathlib
+import shutil
+from collections.abc import Mapping
 
 import numpy as np
 import pytest
@@ -16,10 +18,14 @@ torch = pytest.importorskip("torch")
 
 from lerobot.datasets.lerobot_dataset import LeRobotDataset  # noqa: E402
 
-from fetch.dataset import lerobot, open_dataset  # noqa: E402
-from fetch.dataset.export import export_lerobot  # noqa: E402
-from fetch.dataset.frames import StateRenderer  # noqa: E402
+from fetch.dataset import open_dataset  # noqa: E402
+from fetch.dataset.exports import lerobot  # noqa: E402
+from fetch.dataset.exports.export import export_lerobot  # noqa: E402
+from fetch.dataset.render.frames import StateRenderer  # noqa: E402
 from fetch.dataset.schema import meant_actions  # noqa: E402
+from fetch.learn.takeover import TakeoverDevice  # noqa: E402
+from fetch.teleop.devices import Command  # noqa: E402
+from fetch.teleop.session import CollectConfig, Session  # noqa: E402
 
 SIZE = 64
 CAMERAS = ["front", "wrist"]
@@ -120,3 +126,77 @@ def test_default_out_is_where_lerobot_looks() -> None:
     from lerobot.utils.constants import HF_LEROBOT_HOME
 
     assert lerobot.lerobot_home() == HF_LEROBOT_HOME
+
+
+class Drift:
+    """A policy that pushes the hand along +x whatever it sees (the policy device's interface)."""
+
+    name = "policy"
+
+    def reset(self) -> None:
+        pass
+
+    def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
+        return Command(np.array([0.6, 0.0, 0.0, 1.0], np.float32))
+
+    def close(self) -> None:
+        pass
+
+
+class Person:
+    """Takes the arm at tick 6 for 6 ticks, lets go, and takes it again from tick 31 to steer to the goal."""
+
+    name = "gamepad"
+
+    def __init__(self) -> None:
+        self.tick = 0
+
+    def reset(self) -> None:
+        self.tick = 0
+
+    def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
+        self.tick += 1
+        steer = 6 <= self.tick < 12 or self.tick > 30
+        move = np.clip((obs["desired_goal"] - obs["achieved_goal"]) / 0.05, -1, 1) * steer
+        return Command(np.append(move, 1.0).astype(np.float32), touched=steer)
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.fixture(scope="module")
+def corrected(reach_demos: pathlib.Path, tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    """The two expert demos and an attempt a person corrected twice (`--device takeover`), in one dataset."""
+    out = tmp_path_factory.mktemp("corrected") / "demos"
+    shutil.copytree(reach_demos, out)
+    config = CollectConfig(env_id="Reach-v2", out=str(out), device="takeover", render="none", control_hz=0,
+                           max_steps=50, episodes=1)
+    summary = Session(config, TakeoverDevice(Drift(), Person()), log=lambda text: None).run()
+    assert summary.saved == 1, summary.describe()
+    return out
+
+
+def test_lerobot_reads_who_drove(corrected: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """The takeover labels: every frame's `intervention` and `policy_action` as the HDF5 holds them (false
+    and the action itself in the demos nobody corrected), and the statistics LeRobot normalises with."""
+    root = tmp_path / "ds"
+    export_lerobot(corrected, REPO_ID, root, cameras=[])
+    with open_dataset(corrected) as ds:
+        arrays = [ds.arrays(n) for n in ds.demo_names]
+    assert sum("intervention" in a for a in arrays) == 1 and arrays[-1]["intervention"].any()
+    flags = np.concatenate([a.get("intervention", np.zeros(len(a["actions"]), np.uint8)) for a in arrays])
+    proposed = np.concatenate([a.get("policy_actions", a["actions"]) for a in arrays]).astype(np.float32)
+    dataset = load(root)
+    assert len(dataset) == len(flags)
+    assert dataset.meta.features["intervention"]["dtype"] == "bool"
+    got = [dataset[i] for i in range(len(dataset))]
+    assert [bool(item["intervention"].item()) for item in got] == flags.astype(bool).tolist()
+    assert np.array_equal(np.stack([item["policy_action"].numpy() for item in got]), proposed)
+    stats = dataset.meta.stats
+    for key, values in (("intervention", flags[:, None]), ("policy_action", proposed),
+                        ("action", np.concatenate([meant_actions(a) for a in arrays]))):
+        x = values.astype(np.float64)
+        for stat, want in (("min", x.min(0)), ("max", x.max(0)), ("mean", x.mean(0)), ("std", x.std(0))):
+            np.testing.assert_allclose(np.asarray(stats[key][stat], np.float64), want, rtol=1e-6, atol=1e-7,
+                                       err_msg=f"{key} {stat}")
+        assert int(np.asarray(stats[key]["count"]).item()) == len(x)

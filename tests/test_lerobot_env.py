@@ -8,12 +8,14 @@ values equal those `gym-fetch export --to lerobot` writes, for a state and a cam
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 import pathlib
 import subprocess
 import sys
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -29,7 +31,7 @@ from lerobot.utils.import_utils import register_third_party_plugins  # noqa: E40
 
 import fetch  # noqa: E402
 from fetch.cli import main  # noqa: E402
-from fetch.dataset import lerobot as export  # noqa: E402
+from fetch.dataset.exports import lerobot as export  # noqa: E402
 
 SIZE = 64
 CAMERAS = {"state": "none", "camera": "front,wrist"}
@@ -43,10 +45,14 @@ def vector_env(task: str, cameras: str, **kwargs: object):  # noqa: ANN201 (a gy
 
 
 def test_lerobot_finds_the_plugin() -> None:
+    from lerobot.configs import PreTrainedConfig
     from lerobot.envs.configs import EnvConfig
+    from lerobot.policies.factory import get_policy_class
 
     register_third_party_plugins()  # what lerobot-train, lerobot-eval and lerobot-record call
     assert "fetch" in EnvConfig.get_known_choices()
+    assert "gym_fetch" in PreTrainedConfig.get_known_choices()  # a gym-fetch train run (export_policy)
+    assert get_policy_class("gym_fetch").__name__ == "GymFetchPolicy"
 
 
 @pytest.mark.parametrize("kind", list(CAMERAS))
@@ -74,8 +80,6 @@ def test_every_id_runs_as_lerobot_sees_it(task: str, kind: str) -> None:
 
 
 def fetch_env(task: str):  # noqa: ANN201
-    import gymnasium as gym
-
     return gym.make(task).unwrapped
 
 
@@ -194,3 +198,148 @@ def test_lerobot_eval_runs_a_policy_trained_on_an_export(kind: str, exports: dic
     overall = json.loads((tmp_path / "eval/eval_info.json").read_text())["overall"]
     assert overall["n_episodes"] == 2 and 0 <= overall["pc_success"] <= 100
     assert len(overall["video_paths"]) == 2 and all(pathlib.Path(p).stat().st_size > 0 for p in overall["video_paths"])
+
+
+def evaluated(log: str) -> dict[int, dict]:
+    """lerobot-train's in-training evaluations, by step: what its 'Suite overall aggregated' line holds."""
+    steps = [int(line.rsplit(" ", 1)[1]) for line in log.splitlines() if "Eval policy at step" in line]
+    overall = [ast.literal_eval(line.split("Suite overall aggregated: ", 1)[1]) for line in log.splitlines()
+               if "Suite overall aggregated: " in line]
+    assert len(steps) == len(overall), log[-3000:]
+    return dict(zip(steps, overall, strict=True))
+
+
+def test_lerobot_train_resumes_and_evaluates_in_the_env(exports: dict[str, pathlib.Path],
+                                                        tmp_path: pathlib.Path) -> None:
+    """lerobot-train on an export, on the CPU, evaluating in the env every 2 steps (`--env.type=fetch
+    --env_eval_freq=2`); stopped at step 2 and resumed from its checkpoint to step 4, it goes on from step 2."""
+    out = tmp_path / "train"
+    first = run("lerobot-train", "--dataset.repo_id=local/pick_state", f"--dataset.root={exports['state']}",
+                *TINY_ACT, "--steps=2", "--batch_size=2", "--save_freq=2", "--num_workers=0", f"--output_dir={out}",
+                "--env.type=fetch", "--env.task=PickPlace-v2", "--env.cameras=none", "--env.video_size=64",
+                "--env_eval_freq=2", "--eval.n_episodes=1", "--eval.batch_size=1", "--wandb.enable=false",
+                cwd=tmp_path)
+    config = out / "checkpoints/last/pretrained_model/train_config.json"
+    resumed = run("lerobot-train", "--resume=true", f"--config_path={config}", "--steps=4", cwd=tmp_path)
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["000002", "000004", "last"]
+    state = json.loads((out / "checkpoints/000004/training_state/training_step.json").read_text())
+    assert state["step"] == 4
+    # The resumed run trained steps 3 and 4 only: a run started afresh would have evaluated at step 2 as well.
+    for log, step in ((first, 2), (resumed, 4)):
+        evals = evaluated(log)
+        assert list(evals) == [step], evals
+        assert evals[step]["n_episodes"] == 1 and 0 <= evals[step]["pc_success"] <= 100
+        (video,) = evals[step]["video_paths"]
+        assert pathlib.Path(video).is_relative_to(out / f"eval/videos_step_{step:06d}")
+        assert pathlib.Path(video).stat().st_size > 0
+
+
+def test_lerobot_eval_runs_a_gym_fetch_run(reach_demos: pathlib.Path, tmp_path: pathlib.Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """A `gym-fetch train` run, written as a LeRobot policy (`export_policy`), evaluated by lerobot-eval in
+    the env with the command the export prints: on `gym-fetch eval`'s seeds every episode ends as it does
+    there. LeRobot's pc_success counts an episode that succeeded at any step, `gym-fetch eval`'s "succeeded
+    at some step" (its headline rate is success at the last step)."""
+    from lerobot_env_fetch import export_policy
+
+    from fetch.learn.evaluate import evaluate
+    from fetch.learn.runtime import load
+
+    assert main(["train", str(reach_demos), "--out", str(tmp_path / "run"), "--steps", "50", "--hidden", "32",
+                 "--batch-size", "64"]) == 0
+    capsys.readouterr()
+    assert export_policy.main([str(tmp_path / "run"), str(tmp_path / "policy")]) == 0
+    command = capsys.readouterr().out.splitlines()[-1].split()
+    assert command[:2] == ["lerobot-eval", f"--policy.path={tmp_path / 'policy'}"] and "--seed=1000000" in command
+    episodes = ["--eval.n_episodes=4", "--eval.batch_size=2", "--env.video_size=64",
+                f"--output_dir={tmp_path / 'eval'}"]
+    assert "pc_success" in run(*[a for a in command if not a.startswith("--eval.n_episodes")], *episodes, cwd=tmp_path)
+    info = json.loads((tmp_path / "eval/eval_info.json").read_text())
+    (task,) = info["per_task"]
+    assert main(["eval", str(tmp_path / "run"), "--episodes", "4", "--envs", "2",
+                 "--json", str(tmp_path / "ours.json")]) == 0
+    ours = json.loads((tmp_path / "ours.json").read_text())
+    assert ours["seeds"] == list(range(1_000_000, 1_000_004))
+    assert info["overall"]["pc_success"] == pytest.approx(100 * ours["ever_success_rate"])
+    assert task["metrics"]["successes"] == list(evaluate(load(tmp_path / "run"), 4, envs=2).ever)
+    # Step by step: the LeRobot policy's action is the run's own, bit for bit, on what each env gives.
+    from lerobot_env_fetch.modeling_gym_fetch import GymFetchPolicy
+
+    wrapped, ours = GymFetchPolicy.from_pretrained(tmp_path / "policy"), load(tmp_path / "run")
+    _, env = vector_env("Reach-v2", "none", terminate_on_success=False)
+    plain = gym.make("Reach-v2")
+    try:
+        obs, _ = env.reset(seed=[5])
+        raw, _ = plain.reset(seed=5)
+        wrapped.reset()
+        ours.reset()
+        for _ in range(50):
+            action = wrapped.select_action(preprocess_observation(obs)).numpy()
+            assert np.array_equal(action[0], ours(raw))
+            obs, *_ = env.step(action)
+            raw, *_ = plain.step(action[0])
+    finally:
+        env.close()
+        plain.close()
+
+
+def test_a_camera_policy_reads_back_what_our_env_gives() -> None:
+    """LeRobot's batch from the env with cameras, turned back into our observation: the robot's readings
+    in their places (the rest 0: a camera policy does not see it), the goal, and the images exactly."""
+    from lerobot_env_fetch.modeling_gym_fetch import Inputs
+
+    plain = gym.make("PickPlace-v2", cameras=("front",), image_size=SIZE, image_quality=export.IMAGE_QUALITY)
+    layout = dict(plain.unwrapped.observation_layout)
+    state = export.state_index(export.state_layout(layout, ("front",)))
+    inputs = Inputs(max(p.stop for p in layout.values()), state, layout["object_pos"], ("front",), "")
+    _, env = vector_env("PickPlace-v2", "front")
+    try:
+        obs, _ = env.reset(seed=[9])
+        raw, _ = plain.reset(seed=9)
+        for _ in range(3):
+            got = inputs.observation(preprocess_observation(obs))
+            assert np.array_equal(got["front_image"][0], raw["front_image"])
+            assert np.array_equal(got["desired_goal"][0], raw["desired_goal"].astype(np.float32))
+            assert np.array_equal(got["observation"][0, state], raw["observation"][state].astype(np.float32))
+            assert not np.delete(got["observation"][0], state).any()
+            action = env.action_space.sample()
+            obs, *_ = env.step(action)
+            raw, *_ = plain.step(action[0])
+    finally:
+        env.close()
+        plain.close()
+
+
+def test_a_camera_run_acts_in_lerobot_as_in_our_env(tmp_path: pathlib.Path) -> None:
+    """A `gym-fetch train --inputs pixels` run through `export_policy`: on LeRobot's batch from the env with
+    its cameras, size and drawing quality, its actions are the run's own on our env's observation."""
+    from lerobot_env_fetch.export_policy import eval_command, export_policy
+    from lerobot_env_fetch.modeling_gym_fetch import GymFetchPolicy
+
+    from fetch.learn.runtime import load
+
+    assert main(["collect", "--env", "PickPlace-v2", "--device", "expert", "--episodes", "2", "--render", "none",
+                 "--cameras", "front", "--image-size", "32", "--out", str(tmp_path / "demos")]) == 0
+    assert main(["train", str(tmp_path / "demos"), "--out", str(tmp_path / "run"), "--inputs", "pixels", "--steps",
+                 "5", "--batch-size", "16"]) == 0
+    config = export_policy(tmp_path / "run", tmp_path / "policy")
+    options = dict(a.removeprefix("--env.").split("=") for a in eval_command(tmp_path / "policy", config)
+                   if a.startswith("--env.") and a != "--env.type=fetch")
+    assert options == {"task": "PickPlace-v2", "cameras": "front", "image_size": "32", "image_quality": "fast"}
+    wrapped, ours = GymFetchPolicy.from_pretrained(tmp_path / "policy"), load(tmp_path / "run")
+    cfg = make_env_config("fetch", **{**options, "image_size": int(options["image_size"])}, terminate_on_success=False)
+    env = make_env(cfg, n_envs=1, use_async_envs=False)["fetch"][0]
+    plain = gym.make(ours.env_id, **ours.env_kwargs, **ours.observation_kwargs)
+    try:
+        obs, _ = env.reset(seed=[11])
+        raw, _ = plain.reset(seed=11)
+        wrapped.reset()
+        ours.reset()
+        for _ in range(20):
+            action = wrapped.select_action(preprocess_observation(obs)).numpy()
+            assert np.array_equal(action[0], ours(raw))
+            obs, *_ = env.step(action)
+            raw, *_ = plain.step(action[0])
+    finally:
+        env.close()
+        plain.close()

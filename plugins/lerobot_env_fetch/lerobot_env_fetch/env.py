@@ -2,7 +2,7 @@
 
 LeRobot's `preprocess_observation` renames `agent_pos` to `observation.state`, `environment_state` to
 `observation.environment_state` and `pixels/<camera>` to `observation.images.<camera>`. The values are
-those `gym-fetch export --to lerobot` writes for the same cameras (`fetch.dataset.lerobot`): the state is
+those `gym-fetch export --to lerobot` writes for the same cameras (`fetch.dataset.exports.lerobot`): the state is
 the whole observation vector without cameras, the robot's own readings with them.
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 
 import fetch
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE, image_key
-from fetch.dataset import lerobot as export
+from fetch.dataset.exports import lerobot as export
 from fetch.env import FetchEnv
 
 NAMESPACE = "lerobot_env_fetch"
@@ -75,12 +75,12 @@ class LeRobotFetch(gym.Wrapper):
 
 def make(env_id: str, cameras: Sequence[str] = (), image_size: int = DEFAULT_IMAGE_SIZE, hide_goal: bool = False,
          terminate_on_success: bool = True, render_mode: str | None = None, width: int = 480,
-         height: int = 480) -> LeRobotFetch:
-    """`env_id` with LeRobot's observations: `cameras`' `image_size` x `image_size` [px] images drawn as the
-    export draws them (`fetch.dataset.lerobot.IMAGE_QUALITY`), `hide_goal` as the demos were recorded,
+         height: int = 480, image_quality: str = export.IMAGE_QUALITY) -> LeRobotFetch:
+    """`env_id` with LeRobot's observations: `cameras`' `image_size` x `image_size` [px] images drawn at
+    `image_quality` (default: as the export draws them), `hide_goal` as the demos were recorded,
     `render_mode`, `width` x `height` [px] for `render()` (LeRobot's videos)."""
     env = FetchEnv(**gym.spec(env_id).kwargs, cameras=tuple(cameras), image_size=image_size, hide_goal=hide_goal,
-                   image_quality=export.IMAGE_QUALITY, render_mode=render_mode, width=width, height=height)
+                   image_quality=image_quality, render_mode=render_mode, width=width, height=height)
     return LeRobotFetch(env, env_id, cameras, terminate_on_success)
 
 
