@@ -14,6 +14,7 @@ import os
 import pathlib
 import subprocess
 import sys
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -267,13 +268,18 @@ def test_lerobot_eval_runs_a_gym_fetch_run(reach_demos: pathlib.Path, tmp_path: 
 
     wrapped, ours = GymFetchPolicy.from_pretrained(tmp_path / "policy"), load(tmp_path / "run")
     _, env = vector_env("Reach-v2", "none", terminate_on_success=False)
-    plain = gym.make("Reach-v2")
+    _act_in_lockstep(wrapped, ours, env, gym.make("Reach-v2"), seed=5, steps=50)
+
+
+def _act_in_lockstep(wrapped: Any, ours: Any, env: Any, plain: gym.Env, seed: int, steps: int) -> None:
+    """Step LeRobot's env with the wrapped policy and our env with the run's own, from one seed and with the
+    same actions: the wrapped policy's action must be the run's, bit for bit, at every step."""
     try:
-        obs, _ = env.reset(seed=[5])
-        raw, _ = plain.reset(seed=5)
+        obs, _ = env.reset(seed=[seed])
+        raw, _ = plain.reset(seed=seed)
         wrapped.reset()
         ours.reset()
-        for _ in range(50):
+        for _ in range(steps):
             action = wrapped.select_action(preprocess_observation(obs)).numpy()
             assert np.array_equal(action[0], ours(raw))
             obs, *_ = env.step(action)
@@ -329,17 +335,5 @@ def test_a_camera_run_acts_in_lerobot_as_in_our_env(tmp_path: pathlib.Path) -> N
     wrapped, ours = GymFetchPolicy.from_pretrained(tmp_path / "policy"), load(tmp_path / "run")
     cfg = make_env_config("fetch", **{**options, "image_size": int(options["image_size"])}, terminate_on_success=False)
     env = make_env(cfg, n_envs=1, use_async_envs=False)["fetch"][0]
-    plain = gym.make(ours.env_id, **ours.env_kwargs, **ours.observation_kwargs)
-    try:
-        obs, _ = env.reset(seed=[11])
-        raw, _ = plain.reset(seed=11)
-        wrapped.reset()
-        ours.reset()
-        for _ in range(20):
-            action = wrapped.select_action(preprocess_observation(obs)).numpy()
-            assert np.array_equal(action[0], ours(raw))
-            obs, *_ = env.step(action)
-            raw, *_ = plain.step(action[0])
-    finally:
-        env.close()
-        plain.close()
+    _act_in_lockstep(wrapped, ours, env, gym.make(ours.env_id, **ours.env_kwargs, **ours.observation_kwargs),
+                     seed=11, steps=20)
