@@ -172,6 +172,47 @@ def test_a_chunked_policy_weighs_its_chunks_by_age_as_its_decay_says(torch, deca
     assert (acted[0, 0] > 200) == (decay < 0)  # the newest chunks carry it, or all alike
 
 
+def test_the_chunks_disagreement_is_how_unsure_the_policy_is(torch) -> None:  # noqa: ANN001
+    """`ChunkActor.spread`: none at an episode's first step (one chunk covers it), then the standard deviation
+    of the chunks' guesses for the step over the hand's entries (the fingers' left out), whatever the decay."""
+    from fetch.learn.kinds import PolicyConfig
+    from fetch.learn.policies import ChunkActor
+
+    def model(x):  # noqa: ANN001, ANN202  (the chunk made at step s guesses 100 s + j for step s + j; fingers: 0)
+        chunk = torch.arange(4, dtype=torch.float32).reshape(1, 4, 1).repeat(1, 1, 4) + 100 * float(x[0, 0])
+        chunk[..., 3] = 0.0
+        return chunk
+
+    actor = ChunkActor(PolicyConfig(kind="mlp-chunk", chunk=4, ensemble_decay=-1.0, obs_size=1), model)
+    actor(torch.zeros((1, 1)))
+    assert actor.spread is None
+    for step in range(1, 4):
+        actor(torch.full((1, 1), float(step)))
+    np.testing.assert_allclose(actor.spread, [np.std([3.0, 102.0, 201.0, 300.0])], rtol=1e-6)
+    actor.reset()
+    assert actor.spread is None
+
+
+def test_an_ensembles_members_disagreement_is_how_unsure_a_recurrent_policy_is(torch) -> None:  # noqa: ANN001
+    """`RecurrentActor.spread`: the members' disagreement on this step's hand action; none for one network."""
+    from fetch.learn.kinds import PolicyConfig
+    from fetch.learn.policies import RecurrentActor
+
+    class Members:
+        def step(self, x, hidden):  # noqa: ANN001, ANN202  (K=3 members, B=2: member k says k on x, 10 k on y)
+            out = torch.zeros((3, 2, 1, 4))
+            out[:, :, 0, 0] = torch.arange(3.0)[:, None]
+            out[:, :, 0, 1] = 10 * torch.arange(3.0)[:, None]
+            return out, hidden
+
+    actor = RecurrentActor(PolicyConfig(kind="gru", members=3, obs_size=1), Members())
+    actor(torch.zeros((2, 1)))
+    np.testing.assert_allclose(actor.spread, np.full(2, np.std([0.0, 10.0, 20.0])), rtol=1e-6)
+    single = RecurrentActor(PolicyConfig(kind="gru", obs_size=1), Members())
+    single(torch.zeros((2, 1)))
+    assert single.spread is None
+
+
 @pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])
 def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reach: pathlib.Path, tmp_path,
                                                                      kind: str) -> None:  # noqa: ANN001
@@ -417,6 +458,28 @@ class _Corrector:
 
     def close(self) -> None:
         pass
+
+
+def test_the_window_says_how_unsure_the_driving_policy_is(torch, reach, tmp_path) -> None:  # noqa: ANN001
+    """A chunk policy as a device notes in the HUD how far its chunks' guesses for the step lie apart (from its
+    second step: one chunk covers the first), and the takeover device shows it beside who drives."""
+    import re
+
+    from fetch.learn.device import PolicyDevice
+    from fetch.learn.takeover import TakeoverDevice
+
+    assert _train(reach, tmp_path / "run", "--policy", "mlp-chunk", "--steps", "30") == 0
+    env = gym.make("Reach-v2")
+    device = TakeoverDevice(PolicyDevice(env, tmp_path / "run"), _Corrector())
+    obs, _ = env.reset(seed=900)
+    device.reset()
+    statuses = []
+    for _ in range(3):
+        command = device.poll(obs)
+        statuses.append(command.status)
+        obs, *_ = env.step(command.action)
+    assert "unsure" not in statuses[0] and statuses[0].startswith("the policy drives")
+    assert all(re.search(r"the policy drives   takeovers 0   unsure \d+ mm", s) for s in statuses[1:]), statuses
 
 
 def test_train_from_a_run_goes_on_with_the_corrections(torch, reach, tmp_path) -> None:  # noqa: ANN001

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from fetch.errors import FetchError
+from fetch.robot import ACTION_STEP
 from fetch.teleop.devices import Command, Device, DeviceContext, DeviceKind
 from fetch.teleop.registry import register
 
@@ -55,11 +56,20 @@ class PolicyDevice:
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
         if self._cameras is not None:
             obs = {**obs, **self._cameras.render(self._env.data)}
-        return Command(self.policy(obs))
+        action = self.policy(obs)
+        return Command(action, status=unsure_status(self.policy.spread))
 
     def close(self) -> None:
         if self._cameras is not None:
             self._cameras.close()
+
+
+def unsure_status(spread: float | np.ndarray | None) -> str:
+    """The window's note of how unsure the policy is: the spread of the predictions its action was made from
+    (`Policy.spread`; a batch's widest) as millimetres of hand target; "" where it makes one prediction."""
+    if spread is None:
+        return ""
+    return f"unsure {float(np.max(spread)) * ACTION_STEP * 1000:.0f} mm"
 
 
 @dataclasses.dataclass(frozen=True)

@@ -178,6 +178,12 @@ class Actor(Protocol):
     def __call__(self, x: torch.Tensor, *images: torch.Tensor) -> np.ndarray:
         """(B, D) inputs of this step (and its images) -> (B, 4) actions."""
 
+    @property
+    def spread(self) -> np.ndarray | None:
+        """(B,) after a call: how far apart the predictions this step's action was made from lie, the largest
+        standard deviation over the hand's three action entries (`hand_spread`); None where the action came
+        from one prediction. Cheap, so the window can show a person where the policy is unsure."""
+
 
 class ChunkActor:
     """Predicts a chunk of actions at every step and acts on the weighted mean of every chunk's prediction
@@ -189,6 +195,8 @@ class ChunkActor:
 
     def reset(self) -> None:
         self._chunks: list[np.ndarray] = []  # newest last, each (B, chunk, 4)
+        self.spread: np.ndarray | None = None
+        """the chunks' disagreement over this step (`Actor.spread`): None until two chunks cover it."""
 
     def __call__(self, x: torch.Tensor, *images: torch.Tensor) -> np.ndarray:
         prediction = member_mean(self.config, self.model(x, *images)).numpy()
@@ -197,6 +205,7 @@ class ChunkActor:
         ages = range(len(self._chunks) - 1, -1, -1)
         weights = np.exp(-self.config.ensemble_decay * np.arange(len(self._chunks)))
         predictions = np.stack([c[:, j] for c, j in zip(self._chunks, ages, strict=True)])
+        self.spread = hand_spread(predictions) if len(predictions) > 1 else None
         return np.tensordot(weights / weights.sum(), predictions, axes=1)
 
 
@@ -210,13 +219,24 @@ class RecurrentActor:
     def reset(self) -> None:
         self._t = 0
         self._hidden: Any = None  # an ensemble's: one per member
+        self.spread: np.ndarray | None = None
+        """the members' disagreement (`Actor.spread`): None for a single network."""
 
     def __call__(self, x: torch.Tensor, *images: torch.Tensor) -> np.ndarray:
         if self._t % self.config.seq_len == 0:
             self._hidden = None
         self._t += 1
         out, self._hidden = self.model.step(x[:, None, :], self._hidden)
+        if self.config.members > 1:
+            self.spread = hand_spread(out[:, :, 0].numpy())
         return member_mean(self.config, out)[:, 0].numpy()
+
+
+def hand_spread(predictions: np.ndarray) -> np.ndarray:
+    """(B,) of (N, B, 4) predictions of one step's action: the largest standard deviation over the hand's three
+    entries [action units; 0.1 is 5 mm of hand target]. The fingers' entry is left out: it is learnt companded,
+    so its spread reads on another scale."""
+    return predictions[..., :3].std(axis=0).max(axis=-1)
 
 
 def chunk_examples(config: PolicyConfig, obs: np.ndarray, actions: np.ndarray) -> Examples:

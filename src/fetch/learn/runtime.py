@@ -57,7 +57,18 @@ class Policy:
 
     def reset(self) -> None:
         self._batch: int | None = None
+        self._single = True
         self._actor.reset()
+
+    @property
+    def spread(self) -> float | np.ndarray | None:
+        """How far apart the predictions the last action was made from lie (`fetch.learn.policies.Actor.spread`):
+        [action units] a float for one observation, (B,) for a batch; None where the policy makes one prediction
+        (one network acting step by step, or a chunk policy's first step)."""
+        spread = self._actor.spread
+        if spread is None:
+            return None
+        return float(spread[0]) if self._single else spread
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         x = self.normalizer(flat_obs(obs, self.config.goal_offsets, self.config.blind))
@@ -69,6 +80,7 @@ class Policy:
             raise FetchError(f"the policy acted on batches of {self._batch} observations since reset(), now "
                              f"{len(x)}; call reset() when the batch changes")
         images = [torch.from_numpy(self._image(obs, key, single)) for key in self.image_keys]
+        self._single = single
         with torch.no_grad():
             action = self._actor(torch.from_numpy(x), *images)
         config = self.config

@@ -63,7 +63,8 @@ class TakeoverDevice:
     def poll(self, obs: Mapping[str, np.ndarray]) -> Command:
         # The policy is asked every tick, driving or not: its memory (action chunks, recurrent state) stays
         # in step with the episode, and its proposal is recorded where the person drives.
-        proposal = np.asarray(self.policy.poll(obs).action, np.float32)
+        proposed = self.policy.poll(obs)
+        proposal = np.asarray(proposed.action, np.float32)
         follow = getattr(self.person, "gripper_from", None)
         if self.driver == "policy" and follow is not None:
             follow(self._last_policy)  # the toggle where the policy has the fingers
@@ -80,10 +81,11 @@ class TakeoverDevice:
         action = np.asarray(command.action, np.float32) if person else proposal
         if not person:
             self._last_policy = proposal
-        status = f"{'YOU drive' if person else 'the policy drives'}   takeovers {self.takeovers}"
+        driver = f"{'YOU drive' if person else 'the policy drives'}   takeovers {self.takeovers}"
+        status = "   ".join(filter(None, (driver, proposed.status, command.status)))  # proposed: how unsure it is
         return Command(action, discard=command.discard, finish=command.finish, quit=command.quit,
                        paused=command.paused, switch_camera=command.switch_camera, precision=command.precision,
-                       status=" ".join(filter(None, (status, command.status))), rewind=command.rewind,
+                       status=status, rewind=command.rewind,
                        gripper_closed=command.gripper_closed if person else bool(proposal[3] < 0),
                        intervention=person, proposal=proposal)
 
