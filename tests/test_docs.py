@@ -493,6 +493,9 @@ def _snippets() -> list[tuple[str, str]]:
 
 SNIPPETS = _snippets()
 
+NEEDS_BEHIND = {"fetch.learn": "torch"}
+"""Our modules that import but cannot run without a package of an extra (`fetch.learn` acts with torch)."""
+
 
 def test_the_snippets_are_found() -> None:
     pages = {where.split(":")[0] for where, _ in SNIPPETS}
@@ -505,10 +508,11 @@ def test_the_python_snippets_run_as_written(where: str, code: str, tmp_path: pat
     """Each in a fresh interpreter, in an empty folder; one that needs a package this environment lacks
     (lerobot has its own) is skipped, saying which."""
     tree = ast.parse(code, where)
-    modules = {alias.name.split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.Import)
-               for alias in node.names}
-    modules |= {node.module.split(".")[0] for node in ast.walk(tree)
-                if isinstance(node, ast.ImportFrom) and node.module}
+    imported = {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+    imported |= {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.module}
+    modules = {name.split(".")[0] for name in imported}
+    modules |= {needed for name in imported for part, needed in NEEDS_BEHIND.items()
+                if name == part or name.startswith(part + ".")}
     missing = sorted(name for name in modules if importlib.util.find_spec(name) is None)
     if missing:
         pytest.skip(f"{where} needs {', '.join(missing)}, not installed here")
