@@ -6,6 +6,7 @@ import os
 import pathlib
 import sys
 from collections.abc import Iterator
+from typing import Any
 
 
 def _working_folder_off_the_path() -> None:
@@ -21,6 +22,7 @@ def _working_folder_off_the_path() -> None:
 _working_folder_off_the_path()
 
 import gymnasium as gym  # noqa: E402  (after the working folder is off the path)
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import fetch  # noqa: E402
@@ -86,3 +88,28 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.nodeid in SLOW:
             item.add_marker(pytest.mark.slow)
+
+
+class StretchCorrector:
+    """A person who takes over on every other stretch of 6 ticks and steers to the goal (no pad: the
+    takeover device reads its commands as it would a pad's)."""
+
+    name = "gamepad"
+
+    def __init__(self) -> None:
+        self.tick = 0
+
+    def reset(self) -> None:
+        self.tick = 0
+
+    def poll(self, obs: dict) -> Any:
+        from fetch.teleop.devices import Command
+
+        self.tick += 1
+        if (self.tick // 6) % 2 == 0:
+            return Command(np.zeros(4, np.float32))
+        move = np.clip((obs["desired_goal"] - obs["achieved_goal"]) / 0.05, -1, 1)
+        return Command(np.r_[move, 1.0].astype(np.float32), touched=True)
+
+    def close(self) -> None:
+        pass

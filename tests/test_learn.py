@@ -16,6 +16,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from conftest import StretchCorrector
 from fetch.cli import main
 from fetch.errors import FetchError
 from fetch.learn.evaluate import eval_seeds, wilson
@@ -435,31 +436,6 @@ def test_collect_with_takeover_runs_the_policy_until_the_pad_moves(torch, reach,
         main(["collect", "--env", "Reach-v2", "--device", "takeover", "--takeover-with", "expert"])
 
 
-class _Corrector:
-    """A person who takes over on every other stretch of 6 ticks and steers to the goal (no pad: the
-    takeover device reads its commands as it would a pad's)."""
-
-    name = "gamepad"
-
-    def __init__(self) -> None:
-        self.tick = 0
-
-    def reset(self) -> None:
-        self.tick = 0
-
-    def poll(self, obs):  # noqa: ANN001, ANN201
-        from fetch.teleop.devices import Command
-
-        self.tick += 1
-        if (self.tick // 6) % 2 == 0:
-            return Command(np.zeros(4, np.float32))
-        move = np.clip((obs["desired_goal"] - obs["achieved_goal"]) / 0.05, -1, 1)
-        return Command(np.r_[move, 1.0].astype(np.float32), touched=True)
-
-    def close(self) -> None:
-        pass
-
-
 def test_the_window_says_how_unsure_the_driving_policy_is(torch, reach, tmp_path) -> None:  # noqa: ANN001
     """A chunk policy as a device notes in the HUD how far its chunks' guesses for the step lie apart (from its
     second step: one chunk covers the first), and the takeover device shows it beside who drives."""
@@ -470,7 +446,7 @@ def test_the_window_says_how_unsure_the_driving_policy_is(torch, reach, tmp_path
 
     assert _train(reach, tmp_path / "run", "--policy", "mlp-chunk", "--steps", "30") == 0
     env = gym.make("Reach-v2")
-    device = TakeoverDevice(PolicyDevice(env, tmp_path / "run"), _Corrector())
+    device = TakeoverDevice(PolicyDevice(env, tmp_path / "run"), StretchCorrector())
     obs, _ = env.reset(seed=900)
     device.reset()
     statuses = []
@@ -494,7 +470,7 @@ def test_train_from_a_run_goes_on_with_the_corrections(torch, reach, tmp_path) -
     assert _train(reach, tmp_path / "run", "--steps", "200") == 0
     corrected = tmp_path / "corrected"
     env = gym.make("Reach-v2", max_episode_steps=40)
-    device = TakeoverDevice(PolicyDevice(env, tmp_path / "run"), _Corrector())
+    device = TakeoverDevice(PolicyDevice(env, tmp_path / "run"), StretchCorrector())
     config = CollectConfig(env_id="Reach-v2", out=str(corrected), episodes=3, max_steps=40, device="takeover",
                            render="none", control_hz=0, keep_failures=True, seed=700)
     Session(config, device, env=env, log=lambda _: None).run()

@@ -11,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from conftest import StretchCorrector
 from fetch.cli import main
 from fetch.errors import FetchError
 
@@ -203,6 +204,39 @@ def test_a_pixel_policy_drives_a_collection_session_seeing_what_the_env_shows(to
     with open_dataset(tmp_path / "demos") as ds:
         (name,) = ds.demo_names
         assert int(ds.attrs(name)["num_samples"]) > 0
+
+
+def test_a_person_corrects_a_camera_policy_and_it_learns_from_the_correction(torch, run: pathlib.Path,  # noqa: ANN001
+                                                                             seen: pathlib.Path,
+                                                                             tmp_path: pathlib.Path) -> None:
+    """A correction round with a camera policy: `collect --device takeover` records the cameras the policy sees
+    while a person takes over stretch by stretch, and `train --from` goes on learning the camera policy from the
+    demos plus the stretches the person drove, from their images."""
+    from fetch.dataset import open_dataset, validate
+    from fetch.learn import load
+    from fetch.learn.device import PolicyDevice
+    from fetch.learn.takeover import TakeoverDevice
+    from fetch.teleop.session import CollectConfig, Session
+
+    corrected = tmp_path / "corrected"
+    env = gym.make("PickPlace-v2", max_episode_steps=30)
+    config = CollectConfig(env_id="PickPlace-v2", out=str(corrected), episodes=2, max_steps=30, device="takeover",
+                           render="none", control_hz=0, keep_failures=True, seed=800, cameras=("front", "wrist"),
+                           image_size=SIZE)
+    Session(config, TakeoverDevice(PolicyDevice(env, run), StretchCorrector()), env=env, log=lambda _: None).run()
+    with open_dataset(corrected) as ds:
+        assert validate(ds) == []
+        arrays = [ds.arrays(n) for n in ds.demo_names]
+    assert all(0 < a["intervention"].sum() < len(a["intervention"]) for a in arrays), "both drove in each"
+    assert all(a["obs/front_image"].shape[1:] == (SIZE, SIZE, 3) for a in arrays)
+    again = tmp_path / "again"
+    assert main(["train", str(seen), str(corrected), "--from", str(run), "--out", str(again), "--steps", "10",
+                 "--batch-size", "16"]) == 0
+    policy, base = load(again), load(run)
+    assert policy.config == base.config and policy.config.cameras == ("front", "wrist")
+    assert policy.trained_steps == 10
+    state = torch.load(again / "checkpoint.pt", weights_only=True)
+    assert any(name.endswith("(takeover 1)") for name in state["source"]["train_demos"]), "the corrected stretches"
 
 
 def test_a_pixel_run_resumes_to_the_uninterrupted_result(torch, seen: pathlib.Path, tmp_path: pathlib.Path) -> None:  # noqa: ANN001
