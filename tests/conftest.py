@@ -64,15 +64,20 @@ def rollout_actions(env: gym.Env, n: int, seed: int = 0):
     return [space.sample() for _ in range(n)]
 
 
+def expert_demos(tmp_path_factory: pytest.TempPathFactory, env_id: str, episodes: int) -> pathlib.Path:
+    """A new collector's directory with `episodes` expert demos of `env_id` (`gym-fetch collect`)."""
+    from fetch.cli import main
+
+    out = tmp_path_factory.mktemp(env_id) / "demos"
+    assert main(["collect", "--env", env_id, "--device", "expert", "--episodes", str(episodes), "--render", "none",
+                 "--out", str(out)]) == 0
+    return out
+
+
 @pytest.fixture(scope="session")
 def reach_demos(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
     """A collector's directory with two Reach-v2 expert demos, made once per run; copy it to change it."""
-    from fetch.cli import main
-
-    out = tmp_path_factory.mktemp("reach") / "demos"
-    assert main(["collect", "--env", "Reach-v2", "--device", "expert", "--episodes", "2", "--render", "none",
-                 "--out", str(out)]) == 0
-    return out
+    return expert_demos(tmp_path_factory, "Reach-v2", 2)
 
 
 SLOW = frozenset((pathlib.Path(__file__).parent / "slow.txt").read_text().splitlines())

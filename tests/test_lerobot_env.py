@@ -31,6 +31,7 @@ from lerobot.utils.feature_utils import dataset_to_policy_features  # noqa: E402
 from lerobot.utils.import_utils import register_third_party_plugins  # noqa: E402
 
 import fetch  # noqa: E402
+from conftest import expert_demos  # noqa: E402
 from fetch.cli import main  # noqa: E402
 from fetch.dataset.exports import lerobot as export  # noqa: E402
 
@@ -123,10 +124,7 @@ def test_success_ends_the_episode_and_is_reported() -> None:
 @pytest.fixture(scope="module")
 def pick_demos(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
     """Two PickPlace-v2 expert demos (a task whose observation holds the block, unlike Reach's)."""
-    out = tmp_path_factory.mktemp("pick") / "demos"
-    assert main(["collect", "--env", "PickPlace-v2", "--device", "expert", "--episodes", "2", "--render", "none",
-                 "--out", str(out)]) == 0
-    return out
+    return expert_demos(tmp_path_factory, "PickPlace-v2", 2)
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,8 @@ export they ask for (`exporters.export`, with an `ExportRequest`)."""
 from __future__ import annotations
 
 import argparse
-import dataclasses
 
+from fetch.commands import flags
 from fetch.dataset.exports.exporters import EXPORTERS
 from fetch.dataset.reader import FILE_HELP
 
@@ -46,5 +46,5 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 def run(args: argparse.Namespace) -> int:
     from fetch.dataset.exports.exporters import ExportRequest, export
 
-    print(export(ExportRequest(**{f.name: getattr(args, f.name) for f in dataclasses.fields(ExportRequest)})))
+    print(export(flags.request_of(ExportRequest, args)))
     return 0

@@ -101,3 +101,9 @@ def options_of(options: type[Any], args: argparse.Namespace) -> Any:
     """An options dataclass (a `DeviceKind.options`, `PadFlags`) of the flags parsed into `args`: each field from
     the flag of that destination (a field with no flag here keeps its default)."""
     return options(**{f.name: getattr(args, f.name) for f in dataclasses.fields(options) if hasattr(args, f.name)})
+
+
+def request_of(request: type[Any], args: argparse.Namespace) -> Any:
+    """A request dataclass (`TrainRequest`, `ExportRequest`, `ReplayRequest`) of the flags parsed into `args`, every
+    field from the flag of that destination: a field with no flag is an AttributeError, not a silent default."""
+    return request(**{f.name: getattr(args, f.name) for f in dataclasses.fields(request)})

@@ -4,8 +4,8 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 
+from fetch.commands import flags
 from fetch.dataset.reader import FILE_HELP
 
 
@@ -29,4 +29,4 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 def run(args: argparse.Namespace) -> int:
     from fetch.dataset.replay.replaying import ReplayRequest, replay
 
-    return replay(ReplayRequest(**{f.name: getattr(args, f.name) for f in dataclasses.fields(ReplayRequest)}))
+    return replay(flags.request_of(ReplayRequest, args))

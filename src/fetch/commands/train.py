@@ -4,10 +4,10 @@ is imported only then)."""
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from collections.abc import Callable
 from typing import Any
 
+from fetch.commands import flags
 from fetch.learn import TORCH_INSTALL
 from fetch.learn.kinds import AUTO, FINGER_SCALE, FINGER_SPAN, INPUTS, KINDS, POLICY_KINDS, pixel_kind
 from fetch.learn.recipes import Training, task_training
@@ -58,7 +58,7 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                         "images the dataset holds (collect/generate --cameras, render-obs), the robot's own readings "
                         "(hand position and velocity, finger opening) and the goal, nothing of the objects' state "
                         "(--policy auto: cnn-chunk; docs/training.md)")
-    p.add_argument("--cameras", type=_camera_list, default=None, metavar="NAMES",
+    p.add_argument("--cameras", type=flags.camera_list, default=None, metavar="NAMES",
                    help="--inputs pixels: the cameras it sees, comma-separated (default: every camera the dataset "
                         "has images of)")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial weights and the batches (default 0)")
@@ -114,14 +114,10 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
                         "for a given count)")
 
 
-def _camera_list(text: str) -> tuple[str, ...]:
-    return tuple(c.strip() for c in text.split(",") if c.strip())
-
-
 def run(args: argparse.Namespace) -> int:
     from fetch.learn.jobs import TrainJob, train_datasets
 
-    request = TrainRequest(**{f.name: getattr(args, f.name) for f in dataclasses.fields(TrainRequest)})
+    request = flags.request_of(TrainRequest, args)
     print(train_datasets(TrainJob(tuple(args.dataset), args.out, request, args.correction_weight)))
     return 0
 
