@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import pathlib
 import shutil
+import statistics
 import subprocess
 import sys
 
@@ -90,3 +91,56 @@ def test_a_real_window_shows_shadows_an_inset_and_everything_inside_it(env_id: s
         left, top, w, h = inset
         assert (image[top - 1, left: left + w] > 250).all(), "no frame round the inset"
         assert image[top: top + h, left: left + w].std() > 15, "the inset is blank"
+
+
+def window_budget(budget: float, frames: int, tmp_path: pathlib.Path) -> tuple[dict, np.ndarray]:
+    """The report of tests/scripts/window_budget.py run under Xvfb, and its last screenshot (H, W, 3)."""
+    pygame = pytest.importorskip("pygame")
+    from test_viewer import desktop_env
+
+    run = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", sys.executable,
+                          str(SCRIPT.with_name("window_budget.py")), str(budget), str(frames), str(tmp_path)],
+                         capture_output=True, text=True, timeout=300, env=desktop_env())
+    assert run.returncode == 0, run.stderr[-3000:]
+    report = json.loads(run.stdout.strip().splitlines()[-1])
+    assert len(report["shown"]) == frames, "the window did not show enough frames"
+    return report, pygame.surfarray.array3d(pygame.image.load(str(tmp_path / "last.png"))).swapaxes(0, 1)
+
+
+def amber_in_hud(image: np.ndarray, hud: list[int]) -> float:
+    """The share of the HUD panel's pixels in its amber text: the panel darkens the scene below it."""
+    left, top, w, h = hud
+    panel = image[top: top + h, left: left + w].astype(int)
+    return float(((panel[..., 0] > 200) & (panel[..., 1] > 160) & (panel[..., 1] < 240) & (panel[..., 2] < 140)).mean())
+
+
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="needs xvfb-run (apt-get install xvfb)")
+def test_a_window_over_its_frame_budget_drops_shadows_then_the_inset_by_measured_frame_times(
+        tmp_path: pathlib.Path) -> None:
+    from fetch.teleop.viewer import JUDGED
+
+    report, image = window_budget(1e-6, 3 * JUDGED, tmp_path)  # every frame takes longer than a microsecond
+    shown = report["shown"]
+    # The first JUDGED frames, drawn in full, decide: shadows go, by their median render time.
+    assert all(f["shadows"] and f["inset"] and not f["economy"] for f in shown[: JUDGED - 1])
+    first = f"shadows off: frame {1e3 * statistics.median(f['seconds'] for f in shown[:JUDGED]):.0f} ms"
+    assert (shown[JUDGED - 1]["shadows"], shown[JUDGED - 1]["inset"]) == (False, True)
+    assert shown[JUDGED - 1]["economy"] == first
+    # Then the inset, judged on frames posted after shadows went only (those in flight then do not count).
+    since = [f for f in shown[JUDGED:] if f["tick"] > shown[JUDGED - 1]["ticks"]]
+    median = statistics.median(f["seconds"] for f in since[:JUDGED])
+    assert since[JUDGED - 1]["economy"] == f"{first}, inset off: frame {1e3 * median:.0f} ms"
+    assert since[JUDGED - 2]["inset"] and not since[JUDGED - 1]["inset"]
+    assert not shown[-1]["shadows"] and not shown[-1]["inset"]
+    # The picture: no inset, and the HUD's amber line says what went.
+    assert "inset" not in report["layout"] and image[: image.shape[0] // 4].std() > 20
+    assert amber_in_hud(image, report["layout"]["hud"]) > 0.002
+
+
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="needs xvfb-run (apt-get install xvfb)")
+def test_a_window_within_its_frame_budget_draws_everything(tmp_path: pathlib.Path) -> None:
+    from fetch.teleop.viewer import JUDGED
+
+    report, image = window_budget(60.0, 3 * JUDGED, tmp_path)  # no frame takes a minute
+    assert all(f["shadows"] and f["inset"] and not f["economy"] for f in report["shown"])
+    assert "inset" in report["layout"] and amber_in_hud(image, report["layout"]["hud"]) == 0.0

@@ -48,7 +48,7 @@ def main() -> None:
     env.reset(seed=3)
     base = env.unwrapped
     # The hand 8 cm over the table beside the object, towards the viewer, not over anything else.
-    viewer = Viewer(env, KEYBOARD.legend)
+    viewer = Viewer(env, KEYBOARD.legend, frame_budget=None)  # everything drawn, however slow the frames
     for _ in range(60):
         grip = base.data.site_xpos[base.model.site("robot0:grip").id]
         target = np.array([1.25, 0.95, 0.4 + 0.08 + viewer.scenery.fingertips])

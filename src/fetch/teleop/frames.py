@@ -10,6 +10,8 @@ from __future__ import annotations
 import os
 import sys
 import threading
+import time
+from typing import NamedTuple
 
 import mujoco
 import mujoco.gl_context
@@ -28,6 +30,16 @@ START_TIMEOUT = 30.0
 """[s] for the render thread to make its GL context (well under a second normally)."""
 STOP_TIMEOUT = 5.0
 """[s] for the render thread to finish its frame and free its GL context."""
+
+
+class Drawn(NamedTuple):
+    """A finished frame: the `tag` its caller posted it with, and what it cost the render thread [s, wall
+    clock: on a busy CPU this includes the time the thread waited for one]."""
+
+    tag: int
+    seconds: float
+
+
 class FrameThread:
     """Renders views of scenes into pixels on a thread of its own, which owns the GL context.
 
@@ -35,7 +47,8 @@ class FrameThread:
     drawn]; `shadows` says for each view whether the key light casts them. The caller fills `frame`
     (`mjv_updateScene` into its scenes, on its own thread, from its own MjData, and the sizes),
     `post()`s it and gets a free one in its place; the thread draws the newest posted frame whenever it
-    is idle, and `take()` returns the newest finished pixels not yet taken.
+    is idle, and `take()` returns the newest finished pixels not yet taken. A frame's `tag` (the caller's
+    number for what it shows) comes back with its pixels in `taken`, with the time it took to draw.
     Three frames and three sets of pixel buffers rotate under one lock, held only for the swaps, so
     neither side ever waits for the other's work or writes what the other reads. A failure in the
     thread is kept in `error` for the caller to raise.
@@ -60,6 +73,8 @@ class FrameThread:
         self.error: BaseException | None = None
         self.frames = 0
         """Frames rendered."""
+        self._drawn = self.taken = Drawn(-1, 0.0)
+        """`taken`: the frame whose pixels `take()` last returned."""
         self._started = threading.Event()
         self._thread = threading.Thread(target=self._run, name="fetch-viewer-render", daemon=True)
         self._thread.start()
@@ -99,6 +114,7 @@ class FrameThread:
                 return None
             self._front, self._ready = self._ready, self._front
             self._fresh = False
+            self.taken = self._drawn
             return self._front
 
     @property
@@ -143,6 +159,7 @@ class FrameThread:
                 self._posted, self._drawing = self._drawing, self._posted
                 self._new = False
             back = self._back
+            start = time.perf_counter()
             for i, (scene, (width, height)) in enumerate(zip(self._drawing.scenes, self._drawing.sizes, strict=True)):
                 width, height = min(width, self._max[0]), min(height, self._max[1])
                 if back[i].shape[:2] != (height, width):
@@ -152,18 +169,21 @@ class FrameThread:
                     # Both calls release the GIL: the control thread runs meanwhile.
                     mujoco.mjr_render(rect, scene, context)
                     mujoco.mjr_readPixels(back[i], None, rect, context)
+            drawn = Drawn(self._drawing.tag, time.perf_counter() - start)
             with self._lock:
                 self._back, self._ready = self._ready, self._back
+                self._drawn = drawn
                 self._fresh = True
                 self.frames += 1
 
 
 class _Frame:
-    """One frame's views: a scene each and its size [px] (what `FrameThread` draws)."""
+    """One frame's views: a scene each and its size [px] (what `FrameThread` draws), and the caller's `tag`."""
 
     def __init__(self, scenes: list[mujoco.MjvScene]) -> None:
         self.scenes = scenes
         self.sizes = [(0, 0)] * len(scenes)
+        self.tag = -1
 
 
 def _lower_priority(nice: int) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import collections
 import os
+import statistics
 import time
 from typing import Any
 
@@ -20,7 +21,7 @@ import mujoco
 from fetch._environ import environ
 from fetch._gl import check_gl, has_display
 from fetch.errors import FetchError
-from fetch.teleop.frames import FrameThread
+from fetch.teleop.frames import Drawn, FrameThread
 from fetch.teleop.scenery import Scenery, camera_yaw
 from fetch.teleop.session import HudState
 
@@ -32,6 +33,15 @@ INSET = (0.28, 160)
 """The wrist camera's inset: this fraction of the window's width, and at least this many pixels (4:3)."""
 MARGIN, LINE = 8, 22
 """[px] the HUD's and legend's margin and line height."""
+FRAME_BUDGET = 0.036
+"""[s] the render time a frame should stay under: a frame posted at one 25 Hz tick is shown at the next only
+if it is ready within the period (40 ms), less the tick's own work. Over it, the window draws less
+(`Viewer`; what that buys: docs/results/bench_window.md)."""
+JUDGED = 12
+"""Frames shown whose median render time is held against `FRAME_BUDGET` (half a second at 25 frames/s)."""
+ECONOMIES = ("shadows", "inset")
+"""What the window stops drawing when frames are over budget, in this order: shadows cost most of a software
+GL frame, the inset less."""
 
 
 def window_possible() -> bool:
@@ -48,10 +58,18 @@ class Viewer:
     toggles full screen; the HUD and the legend wrap to its width. Keys pressed since the last `show` are
     in `key_events` (pygame key codes), the window's close button sets `closed`. Raises FetchError when
     no window can be opened (no display, no OpenGL).
+
+    What it draws follows from measured frame times, so that a person can steer on software GL or a busy
+    CPU: while the median render time of `JUDGED` frames shown is over `frame_budget` [s], it stops drawing
+    the next of `ECONOMIES` (shadows, then the inset), judging anew on frames drawn since, and the HUD says
+    what it dropped and the frame time that made it ("shadows off: frame 52 ms"). It never draws more again
+    in the session: a picture that changes back and forth is worse than a plainer one. `frame_budget=None`
+    draws what it was asked to throughout.
     """
 
     def __init__(self, env: Any, legend: tuple[str, ...] = (), size: tuple[int, int] = SIZE,
-                 camera: str | None = None, inset: str | None = "wrist", shadows: bool = True) -> None:
+                 camera: str | None = None, inset: str | None = "wrist", shadows: bool = True,
+                 frame_budget: float | None = FRAME_BUDGET) -> None:
         if not window_possible():
             raise FetchError("no display for the viewer window; use --render none (headless), or run under "
                              "a desktop session or `xvfb-run`")
@@ -65,6 +83,16 @@ class Viewer:
                 raise FetchError(f"unknown camera {name!r}; known: {', '.join(self.cameras)}")
         self.camera = self.home
         self.inset = inset
+        self.shadows = shadows
+        """Whether the main view casts shadows now."""
+        self.inset_on = inset is not None
+        """Whether the inset is drawn now."""
+        self.frame_budget = frame_budget
+        self.economy = ""
+        """What was dropped to keep within `frame_budget`, and the frame time that made it (the HUD's line)."""
+        self._dropped: list[tuple[str, float]] = []
+        self._judged: list[float] = []
+        self._judge_from = 0
         self._views = [mujoco.MjvCamera(), mujoco.MjvCamera()]
         for view in self._views:
             view.type = mujoco.mjtCamera.mjCAMERA_FIXED
@@ -76,6 +104,9 @@ class Viewer:
         self.frames = 0
         """Frames shown."""
         self.ticks = 0
+        """`show` calls: each posts the scene as it is then, tagged with this count."""
+        self.shown_frame = Drawn(-1, 0.0)
+        """The newest frame shown: the tick whose scene it drew (`ticks` then) and its render time [s]."""
         self._shown: collections.deque[float] = collections.deque(maxlen=25)
         self.layout: dict[str, tuple[int, int, int, int]] = {}
         """Where the last frame drew each part, (left, top, width, height) [px]: "scene", "inset", "hud",
@@ -179,7 +210,8 @@ class Viewer:
         scenery.sync(self.env.data)
         size = self.size
         frame = self._frames.frame
-        inset = self.home if self.camera == self.inset else self.inset
+        inset = (self.home if self.camera == self.inset else self.inset) if self.inset_on else None
+        frame.scenes[0].flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
         for i, (camera, view_size) in enumerate(((self.camera, size), (inset, self._inset_size(size)))):
             frame.sizes[i] = view_size if camera is not None else (0, 0)
             if camera is None:
@@ -188,6 +220,7 @@ class Viewer:
             mujoco.mjv_updateScene(scenery.model, scenery.data, self._option, None, self._views[i],
                                    mujoco.mjtCatBit.mjCAT_ALL, frame.scenes[i])
             scenery.mark(frame.scenes[i])
+        frame.tag = self.ticks
         self._frames.post()
         views = self._frames.take()
         if views is None:
@@ -206,8 +239,31 @@ class Viewer:
             self.layout["inset"] = (left, top, w, h)
         self._draw_hud(window, hud, size)
         self._window.flip()
+        self.shown_frame = self._frames.taken
         self.frames += 1
         self._shown.append(time.perf_counter())
+        self._judge(self.shown_frame)
+
+    def _judge(self, drawn: Drawn) -> None:
+        """Count a shown frame's render time; after `JUDGED` of them drawn as the window draws now, drop the
+        next economy if their median is over the budget."""
+        left = [name for name in ECONOMIES if (self.shadows if name == "shadows" else self.inset_on)]
+        if self.frame_budget is None or not left or drawn.tag < self._judge_from:
+            return
+        self._judged.append(drawn.seconds)
+        if len(self._judged) < JUDGED:
+            return
+        median = statistics.median(self._judged)
+        self._judged = []
+        if median <= self.frame_budget:
+            return
+        if left[0] == "shadows":
+            self.shadows = False
+        else:
+            self.inset_on = False
+        self._dropped.append((left[0], median))
+        self.economy = ", ".join(f"{name} off: frame {1e3 * seconds:.0f} ms" for name, seconds in self._dropped)
+        self._judge_from = self.ticks + 1  # frames posted from the next tick on are drawn without it
 
     def _hud_groups(self, hud: HudState) -> list[tuple[list[str], tuple[int, int, int]]]:
         """The HUD's lines, each a list of items to wrap, with its colour."""
@@ -225,6 +281,8 @@ class Viewer:
                   (state, white), (view, white)]
         if hud.rewound:
             groups.append(([f"rewound {hud.rewound * hud.dt:.0f} s this attempt"], white))
+        if self.economy:
+            groups.append(([self.economy], amber))
         if hud.status:
             groups.append(([hud.status], amber))
         return groups
