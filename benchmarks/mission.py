@@ -37,22 +37,16 @@ from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES
 def teleop(env_id: str, out: pathlib.Path, demos: int, style: str, seed: int = 0) -> tuple[float, float]:
     """([s] wall time, [s] what a person at 25 Hz would have spent steering)."""
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-    from fetch.experts import make_expert
-    from fetch.teleop.gamepad import GamepadDevice
-    from fetch.teleop.session import CollectConfig, Session, make_env
     from fetch.testing import operators, vpad
+    from fetch.timing import CONTROL_DT
 
     vpad.init_headless()
     pad = vpad.VirtualPad()
-    config = CollectConfig(env_id=env_id, out=str(out), episodes=demos, device="gamepad", render="none",
-                           control_hz=0, max_steps=400, seed=seed)
-    env = make_env(config)
-    operator = operators.Operator(pad, GamepadDevice(), make_expert(env), operators.STYLES[style], seed=seed)
     start = time.perf_counter()
-    summary = Session(config, operator, env=env, log=lambda text: None).run()
+    summary = operators.drive(pad, env_id, style, out, demos, seed)
     steps = sum(a.steps for a in summary.attempts)
     print(f"  teleop: {summary.describe()}")
-    return time.perf_counter() - start, steps * env.unwrapped.dt
+    return time.perf_counter() - start, steps * CONTROL_DT
 
 
 def demo_length(path: pathlib.Path) -> float:

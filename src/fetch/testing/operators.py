@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import deque
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -32,6 +32,9 @@ from fetch.dataset.habits import SQUEEZE
 from fetch.experts.base import Stage
 from fetch.experts.motion import Drawer, Push
 from fetch.experts.pick import PickAndPlace
+
+if TYPE_CHECKING:
+    from fetch.teleop.session import SessionSummary
 
 Range = tuple[float, float]
 
@@ -318,9 +321,10 @@ class Operator:
         self.device.close()
 
 
-def record(pad: Any, env_id: str, style: str, out: Any, demos: int, seed: int = 0) -> Any:
-    """`demos` successful demos of `env_id` by a stand-in of `style` (a name in `STYLES`), through the
-    virtual pad `pad`, the real `GamepadDevice` and the real collector, into the dataset `out`."""
+def drive(pad: Any, env_id: str, style: str, out: Any, demos: int, seed: int = 0) -> SessionSummary:
+    """A collection session of `demos` demos of `env_id` by a stand-in of `style` (a name in `STYLES`), through
+    the virtual pad `pad`, the real `GamepadDevice` and the real collector, into the dataset `out`: its summary,
+    however many it saved."""
     from fetch.experts import make_expert
     from fetch.teleop.gamepad import GamepadDevice
     from fetch.teleop.session import CollectConfig, Session, make_env
@@ -329,7 +333,13 @@ def record(pad: Any, env_id: str, style: str, out: Any, demos: int, seed: int = 
                            control_hz=0, max_steps=400, seed=seed)
     env = make_env(config)
     operator = Operator(pad, GamepadDevice(), make_expert(env), STYLES[style], seed=seed)
-    summary = Session(config, operator, env=env, log=lambda _: None).run()
+    return Session(config, operator, env=env, log=lambda _: None).run()
+
+
+def record(pad: Any, env_id: str, style: str, out: Any, demos: int, seed: int = 0) -> Any:
+    """`out`, holding `demos` successful demos of `env_id` by a stand-in of `style` (`drive`); an error where
+    the session saved fewer."""
+    summary = drive(pad, env_id, style, out, demos, seed)
     if summary.saved != demos:
         raise RuntimeError(f"{style} on {env_id}: {summary.describe()}")
     return out
