@@ -331,6 +331,7 @@ def test_eval_runs_on_seeds_the_dataset_never_used(torch, reach: pathlib.Path, t
     saved = json.loads((tmp_path / "eval.json").read_text())
     assert saved["seeds"] == [12, 13, 14, 15, 16] and saved["success"] == list(result.success), \
         "the same seeds give the same outcomes, however many envs step at once"
+    assert saved["ever"] == list(result.ever)  # per episode, what lerobot-eval's successes are compared with
 
 
 def test_eval_in_the_batched_vector_env_gives_what_separate_envs_give(torch, reach: pathlib.Path, tmp_path,

@@ -114,7 +114,7 @@ class EvalResult:
                 "ever_success_rate": sum(self.ever) / max(1, self.episodes), "mean_length": self.mean_length,
                 "horizon": self.horizon, "registered_horizon": self.registered,
                 "registered_success_rate": self.registered_rate, "seeds": list(self.seeds),
-                "success": list(self.success)}
+                "success": list(self.success), "ever": list(self.ever)}
 
 
 def evaluate(policy: Any, episodes: int, *, envs: int = 50, seed_start: int = EVAL_SEED_START,
