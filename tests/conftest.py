@@ -74,6 +74,33 @@ def expert_demos(tmp_path_factory: pytest.TempPathFactory, env_id: str, episodes
     return out
 
 
+@pytest.fixture(scope="module")
+def torch():  # noqa: ANN201
+    """torch, for the tests that train or load a policy; they skip where it is not installed (the base venv)."""
+    return pytest.importorskip("torch")
+
+
+def objects_state(layout: dict[str, slice]) -> np.ndarray:
+    """A mask over the state observation an env's `observation_layout` describes: True at every entry but the
+    robot's own readings (`fetch.learn.data.PROPRIOCEPTION`), what a camera policy must not see. Made from the
+    layout, not from the policy's own list of what it is blind to, so a check of that list is not circular."""
+    from fetch.learn.data import PROPRIOCEPTION
+
+    hidden = np.ones(max(part.stop for part in layout.values()), bool)
+    for name in PROPRIOCEPTION:
+        hidden[layout[name]] = False
+    return hidden
+
+
+def hide_objects(obs: dict[str, np.ndarray], hidden: np.ndarray) -> dict[str, np.ndarray]:
+    """A copy of `obs` (one env's or a batch's) with the objects' state (`objects_state`) and the achieved goal,
+    the object's position, NaN."""
+    shown = {k: np.array(v, copy=True) for k, v in obs.items()}
+    shown["observation"][..., hidden] = np.nan
+    shown["achieved_goal"][...] = np.nan
+    return shown
+
+
 @pytest.fixture(scope="session")
 def reach_demos(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
     """A collector's directory with two Reach-v2 expert demos, made once per run; copy it to change it."""

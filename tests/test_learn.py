@@ -27,11 +27,6 @@ TINY = ["--hidden", "32", "--batch-size", "64"]
 
 
 @pytest.fixture(scope="module")
-def torch():  # noqa: ANN201
-    return pytest.importorskip("torch")
-
-
-@pytest.fixture(scope="module")
 def reach(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
     """12 Reach-v2 expert demos (seeds 0-11): 11 in mask/train, 1 in mask/valid."""
     out = tmp_path_factory.mktemp("learn") / "reach"

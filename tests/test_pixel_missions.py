@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from conftest import hide_objects, objects_state
 from fetch.cli import main
 from fetch.dataset import open_dataset
 from fetch.dataset.habits import dataset_flags, layout_of
@@ -31,11 +32,6 @@ HALF_STICK = 0.6
 """`slow` pushes the stick 0.45-0.55 of the way (noise 0.05): no arm action beyond this."""
 
 
-@pytest.fixture(scope="module")
-def torch():  # noqa: ANN201
-    return pytest.importorskip("torch")
-
-
 class HiddenState:
     """Eval's vector env, giving the policy each observation with the objects' state NaN (every entry but the
     robot's own readings, and the achieved goal); a twin of the policy acts on the whole observation beside it:
@@ -48,10 +44,7 @@ class HiddenState:
 
     def _hide(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         self.whole = {k: np.array(v, copy=True) for k, v in obs.items()}
-        shown = {k: np.array(v, copy=True) for k, v in obs.items()}
-        shown["observation"][:, self.hidden] = np.nan
-        shown["achieved_goal"][:] = np.nan
-        return shown
+        return hide_objects(obs, self.hidden)
 
     def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         obs, info = self.vec.reset(**kwargs)
@@ -77,8 +70,6 @@ def test_a_tiny_pixel_mission_by_each_style(torch, pad, style: str, tmp_path: pa
     No success rate: the tiny policy is not meant to succeed."""
     import fetch.learn
     from fetch.learn import evaluate
-    from fetch.learn.data import PROPRIOCEPTION
-
     human = operators.record(pad, ENV, style, tmp_path / "human", 2, seed=0)
     with open_dataset(human) as ds:
         pad_demos = set(ds.demo_names)
@@ -119,9 +110,7 @@ def test_a_tiny_pixel_mission_by_each_style(torch, pad, style: str, tmp_path: pa
     assert policy.seeds == seeds and policy.trained_steps == 5
     layout = layout_of(ENV)
     assert layout is not None
-    readings = [i for name in PROPRIOCEPTION for i in range(layout[name].start, layout[name].stop)]
-    hidden = np.ones(max(part.stop for part in layout.values()), bool)
-    hidden[readings] = False
+    hidden = objects_state(layout)
     assert set(np.flatnonzero(hidden).tolist()) <= set(config.blind), "it reads the objects' state"
 
     made: list[HiddenState] = []

@@ -11,18 +11,13 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from conftest import StretchCorrector
+from conftest import StretchCorrector, hide_objects, objects_state
 from fetch.cli import main
 from fetch.errors import FetchError
 
 TINY = ["--hidden", "32", "--batch-size", "16", "--checkpoint-every", "10"]
 SIZE = 16
 """[px] the images' side: small, so the tests are quick; the benchmark measures what 84 px learns."""
-
-
-@pytest.fixture(scope="module")
-def torch():  # noqa: ANN201
-    return pytest.importorskip("torch")
 
 
 @pytest.fixture(scope="module")
@@ -80,26 +75,18 @@ def test_the_pixel_policy_acts_the_same_with_the_objects_state_replaced_by_nan(t
     achieved goal: the object's position) set to NaN gives the same actions, step after step of an
     episode; other images give other actions."""
     import fetch.learn
-    from fetch.learn.data import PROPRIOCEPTION
-
     policy = fetch.learn.load(run)
     assert policy.observation_kwargs == {"cameras": ("front", "wrist"), "image_size": SIZE, "image_quality": "fast"}
     env = gym.make(policy.env_id, **policy.env_kwargs, **policy.observation_kwargs)
-    layout = env.unwrapped.observation_layout
-    readings = [i for name in PROPRIOCEPTION for i in range(layout[name].start, layout[name].stop)]
-    hidden = np.ones(env.observation_space["observation"].shape[0], bool)
-    hidden[readings] = False
+    hidden = objects_state(env.unwrapped.observation_layout)
     obs, _ = env.reset(seed=2024)
     policy.reset()
     twin = fetch.learn.load(run)
     twin.reset()
     for _ in range(8):
-        nan = {k: v.copy() for k, v in obs.items()}
-        nan["observation"][hidden] = np.nan
-        nan["achieved_goal"][:] = np.nan
         action = policy(obs)
         assert np.isfinite(action).all()
-        np.testing.assert_array_equal(twin(nan), action)
+        np.testing.assert_array_equal(twin(hide_objects(obs, hidden)), action)
         obs, *_ = env.step(action)
     other = {**obs, "front_image": np.zeros_like(obs["front_image"]), "wrist_image": 255 - obs["wrist_image"]}
     policy.reset()
