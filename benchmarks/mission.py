@@ -57,6 +57,14 @@ def demo_length(path: pathlib.Path) -> float:
         return sum(int(ds.attrs(n)["num_samples"]) for n in ds.demo_names) / max(1, len(ds.demo_names))
 
 
+def mission_dir(base: str | pathlib.Path, env_id: str, style: str, inputs: str = "state", image_size: int = 84,
+                image_quality: str = DEFAULT_IMAGE_QUALITY) -> pathlib.Path:
+    """Where a mission keeps its stages under `--dir` `base`: one folder per task and style, and per image size and
+    quality for the camera path (its pad demos are the same as the state path's for the same seed)."""
+    root = pathlib.Path(base) / env_id
+    return root / (f"{style}-pixels{image_size}-{image_quality}" if inputs == "pixels" else style)
+
+
 TIGHT_SEED = 500_000
 """`generate --seed` of the tight starts' dataset: its attempts the same seed and number would be the other's
 (the same demo twice); below the evaluation's seeds (1,000,000 on)."""
@@ -113,10 +121,9 @@ def main() -> None:
                         help="more `gym-fetch generate` flags, e.g. \"--no-fit-opening\" (use another --dir)")
     parser.add_argument("--train-args", default="", help="more `gym-fetch train` flags, e.g. \"--steps 3000\"")
     args = parser.parse_args()
-    root = pathlib.Path(args.dir) / args.env / args.style
+    root = mission_dir(args.dir, args.env, args.style, args.inputs, args.image_size, args.image_quality)
     cameras: list[str] = []
-    if args.inputs == "pixels":  # its own directory; the stand-in's pad demos are the same for the same seed
-        root = root.parent / f"{args.style}-pixels{args.image_size}-{args.image_quality}"
+    if args.inputs == "pixels":
         cameras = ["--cameras", "front,wrist", "--image-size", str(args.image_size), "--image-quality",
                    args.image_quality]
     root.mkdir(parents=True, exist_ok=True)

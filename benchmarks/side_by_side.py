@@ -43,6 +43,7 @@ import time
 from typing import Any
 
 from benchmarks._machine import machine_line
+from benchmarks.mission import mission_dir
 
 LEROBOT_POLICIES: dict[str, tuple[str, ...]] = {
     "act": ("--policy.type=act", "--policy.chunk_size=16", "--policy.n_action_steps=8", "--batch_size=8"),
@@ -140,21 +141,21 @@ def cell(env_id: str, inputs: str, args: argparse.Namespace) -> list[dict[str, A
     log, records = root / "log.txt", Records(root / "records.json")
     missions = pathlib.Path(args.dir).resolve() / "mission"
     image = ["--inputs", "pixels"] if inputs == "pixels" else []
-    mission_dir = missions / env_id / (f"{args.style}-pixels84-fast" if inputs == "pixels" else args.style)
+    stages = mission_dir(missions, env_id, args.style, inputs)  # the mission's default image size and quality
 
     def mission() -> dict[str, Any]:
         call([sys.executable, "-m", "benchmarks.mission", "--env", env_id, "--style", args.style, "--seed",
               str(args.seed), "--episodes", str(args.episodes), "--dir", str(missions), *image,
               *shlex.split(args.mission_args)], log)
-        return json.loads((mission_dir / "timing.json").read_text())
+        return json.loads((stages / "timing.json").read_text())
 
     timing = records.get("mission", mission)
     budget = timing["train"]
-    ours_eval = json.loads((mission_dir / "eval.json").read_text())
+    ours_eval = json.loads((stages / "eval.json").read_text())
 
     def export() -> str:
         merged, target = root / "merged.hdf5", root / "lerobot"
-        sources = [str(p) for p in (mission_dir / "generated", mission_dir / "generated-tight") if p.exists()]
+        sources = [str(p) for p in (stages / "generated", stages / "generated-tight") if p.exists()]
         if len(sources) > 1:  # what `gym-fetch train` read as two datasets, one for LeRobot
             call([tool("gym-fetch"), "merge", *sources, "--out", str(merged), "--force"], log)
         cameras = [] if inputs == "pixels" else ["--cameras", "none"]
@@ -168,7 +169,7 @@ def cell(env_id: str, inputs: str, args: argparse.Namespace) -> list[dict[str, A
     def ours() -> dict[str, Any]:
         policy = root / "ours-policy"
         shutil.rmtree(policy, ignore_errors=True)
-        printed = subprocess.run([sys.executable, "-m", "lerobot_env_fetch.export_policy", str(mission_dir / "run"),
+        printed = subprocess.run([sys.executable, "-m", "lerobot_env_fetch.export_policy", str(stages / "run"),
                                   str(policy)], capture_output=True, text=True, check=True).stdout
         command = printed.strip().splitlines()[-1].split()
         flags = env_flags_of(command)
