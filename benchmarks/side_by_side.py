@@ -44,6 +44,7 @@ from typing import Any
 
 from benchmarks._machine import machine_line
 from benchmarks.mission import mission_dir
+from fetch.learn import checkpoint
 
 LEROBOT_POLICIES: dict[str, tuple[str, ...]] = {
     "act": ("--policy.type=act", "--policy.chunk_size=16", "--policy.n_action_steps=8", "--batch_size=8"),
@@ -181,7 +182,8 @@ def cell(env_id: str, inputs: str, args: argparse.Namespace) -> list[dict[str, A
     if our["successes"] != ours_eval["ever"]:
         print(f"  {env_id} {inputs}: lerobot-eval and gym-fetch eval DISAGREE on ours: "
               f"{sum(our['successes'])} against {sum(ours_eval['ever'])} of {args.episodes}")
-    rows = [{"key": "ours", "policy": "gym-fetch train", "budget": "its own", "train_s": budget, "steps": None,
+    our_steps = int(checkpoint.read(stages / "run")["step"])
+    rows = [{"key": "ours", "policy": "gym-fetch train", "budget": "its own", "train_s": budget, "steps": our_steps,
              "lerobot": our["pc_success"], "wins": sum(our["successes"]), "ours_last": ours_eval["success_rate"],
              "ours_ever": 100 * ours_eval["ever_success_rate"], "agree": our["successes"] == ours_eval["ever"],
              "path": root / "ours-policy"}]
