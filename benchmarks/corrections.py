@@ -1,10 +1,13 @@
 """A correction round with a stand-in corrector: what `collect --device takeover` and `train --from` buy.
 
     python -m benchmarks.corrections --env Bin-pick-v2 --dir /tmp/corr [--demos 100] [--attempts 20]
+        [--style person [--seed 100]]
 
 Each stage is skipped when its output is already in --dir, so an interrupted run goes on where it stopped:
 
-1. `demos`: --demos expert demos (DART noise, as `collect --device expert` records them), seeds 0...
+1. `demos`: --demos expert demos (DART noise, as `collect --device expert` records them), seeds 0...; with
+   `--style`, --demos pad demos by that stand-in operator through SDL's virtual pad (`benchmarks.mission`'s
+   teleop, collection seed `--seed`): a person's few demos, no `generate`.
 2. `base`: `gym-fetch train demos` with the task's defaults; evaluated on --episodes unseen seeds.
 3. `corrected`: --attempts attempts (seeds 50000...) where the base policy drives and the stand-in
    corrector watches: when the policy stalls (the hand moved < 1 cm over the last `STALL` steps, the task
@@ -14,7 +17,7 @@ Each stage is skipped when its output is already in --dir, so an interrupted run
    the expert would (a `fetch.experts` expert, its clean actions) for `DRIVE` steps or until success,
    and lets go (the device hands back after 0.5 s).
 4. `fixed`: `gym-fetch train demos corrected --from base`, evaluated on the same seeds.
-5. `plain` (the comparison): as many more expert demos as corrected attempts (seeds 60000...), then
+5. `plain` (the comparison): as many more demos as corrected attempts, of the same kind (seeds 60000...), then
    `gym-fetch train demos more --from base`, evaluated likewise.
 
 It prints each stage's time and a table. The stand-in reads the simulator's state, as the expert does; a
@@ -35,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 from benchmarks._machine import machine_line
+from benchmarks.mission import teleop
 from fetch.cli import main as gym_fetch
 from fetch.experts import make_expert
 from fetch.learn.device import PolicyDevice
@@ -132,6 +136,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=None, help="train --from's --steps (default: train's)")
     parser.add_argument("--drift", action="store_true", help="the stand-in also takes over on drift")
     parser.add_argument("--stall", type=int, default=STALL, help=f"the stand-in's STALL (default {STALL})")
+    parser.add_argument("--style", default=None,
+                        help="pad demos by this stand-in operator (fetch.testing.operators) instead of expert demos")
+    parser.add_argument("--seed", type=int, default=100, help="--style: the pad demos' collection seed")
     parser.add_argument("--expert-finger-noise", type=float, default=None,
                         help="collect's --expert-finger-noise for the expert demos (default: collect's, = the arm's)")
     args = parser.parse_args()
@@ -142,7 +149,9 @@ def main() -> None:
     horizon = gym.spec(env_id).max_episode_steps or 50
 
     def collect_expert(out: pathlib.Path, episodes: int, seed: int) -> None:
-        if not out.exists():
+        if args.style and not out.exists():
+            teleop(env_id, out, episodes, args.style, seed)
+        elif not out.exists():
             noise = args.expert_finger_noise
             fingers = [] if noise is None else ["--expert-finger-noise", str(noise)]
             assert gym_fetch(["collect", "--env", env_id, "--device", "expert", "--episodes", str(episodes),
@@ -156,7 +165,7 @@ def main() -> None:
             assert gym_fetch(["train", *map(str, data), "--out", str(out), *extra]) == 0
             (out / "trained").touch()
 
-    timed("demos", times, lambda: collect_expert(root / "demos", args.demos, 0))
+    timed("demos", times, lambda: collect_expert(root / "demos", args.demos, args.seed if args.style else 0))
     timed("train base", times, lambda: train(root / "base", root / "demos"))
     base = timed("eval base", times, lambda: evaluate(root / "base", args.episodes))
 
@@ -193,13 +202,15 @@ def main() -> None:
         demos, takeovers, person, steps = summarize(ds).corrections
     print(machine_line("torch"))
     fingers = "" if args.expert_finger_noise is None else f" (--expert-finger-noise {args.expert_finger_noise})"
-    print(f"{env_id}, {args.demos} expert demos{fingers}, "
+    kind = f"pad demos by the {args.style} stand-in (collection seed {args.seed})" if args.style else "expert demos"
+    print(f"{env_id}, {args.demos} {kind}{fingers}, "
           f"{args.attempts} attempts with the stand-in ready to take over ({takeovers} takeovers, {person} of "
           f"their {steps} steps driven by it), {args.episodes} evaluation episodes\n")
     print(f"--correction-weight {args.weight or 'default'}, --steps {args.steps or 'default'} for --from\n")
     print("| policy | success | 95 % interval |\n|---|---|---|")
-    for name, result in (("base (expert demos)", base), ("base + corrections (--from base)", fixed),
-                         (f"base + {args.attempts} more expert demos (--from base)", plain)):
+    more = "pad" if args.style else "expert"
+    for name, result in ((f"base ({more} demos)", base), ("base + corrections (--from base)", fixed),
+                         (f"base + {args.attempts} more {more} demos (--from base)", plain)):
         low, high = result["ci95"]
         print(f"| {name} | {100 * result['success_rate']:.0f} % | {100 * low:.0f}-{100 * high:.0f} % |")
     round_time = sum(times.get(k, 0.0) for k in ("collect corrections", "train fixed", "eval fixed"))

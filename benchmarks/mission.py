@@ -43,7 +43,10 @@ def teleop(env_id: str, out: pathlib.Path, demos: int, style: str, seed: int = 0
     vpad.init_headless()
     pad = vpad.VirtualPad()
     start = time.perf_counter()
-    summary = operators.drive(pad, env_id, style, out, demos, seed)
+    try:
+        summary = operators.drive(pad, env_id, style, out, demos, seed)
+    finally:
+        pad.detach()  # unplugged, so a later session in this process finds one pad only
     steps = sum(a.steps for a in summary.attempts)
     print(f"  teleop: {summary.describe()}")
     return time.perf_counter() - start, steps * CONTROL_DT
