@@ -71,7 +71,8 @@ class StandInCorrector:
 
     def reset(self) -> None:
         self.expert.reset()
-        self.tick, self.driving, self.grips, self.takeovers, self.against = 0, 0, [], 0, 0
+        self.tick, self.driving, self.takeovers, self.against = 0, 0, 0, 0
+        self.grips: list[np.ndarray] = []
         self.wanted: np.ndarray | None = None
 
     def gripper_from(self, action: np.ndarray | None) -> None:
