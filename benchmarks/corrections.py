@@ -149,7 +149,7 @@ def main() -> None:
     env_id = args.env
     horizon = gym.spec(env_id).max_episode_steps or 50
 
-    def collect_expert(out: pathlib.Path, episodes: int, seed: int) -> None:
+    def collect_demos(out: pathlib.Path, episodes: int, seed: int) -> None:
         if args.style and not out.exists():
             teleop(env_id, out, episodes, args.style, seed)
         elif not out.exists():
@@ -166,7 +166,7 @@ def main() -> None:
             assert gym_fetch(["train", *map(str, data), "--out", str(out), *extra]) == 0
             (out / "trained").touch()
 
-    timed("demos", times, lambda: collect_expert(root / "demos", args.demos, args.seed if args.style else 0))
+    timed("demos", times, lambda: collect_demos(root / "demos", args.demos, args.seed if args.style else 0))
     timed("train base", times, lambda: train(root / "base", root / "demos"))
     base = timed("eval base", times, lambda: evaluate(root / "base", args.episodes))
 
@@ -192,7 +192,7 @@ def main() -> None:
     plain_run = root / f"plain{'-s' + str(args.steps) if args.steps else ''}"  # the weight is for corrections
     timed("train fixed", times, lambda: train(fixed_run, root / "demos", corrected, start=root / "base"))
     fixed = timed("eval fixed", times, lambda: evaluate(fixed_run, args.episodes))
-    timed("plain demos", times, lambda: collect_expert(root / "more", args.attempts, PLAIN_SEEDS))
+    timed("plain demos", times, lambda: collect_demos(root / "more", args.attempts, PLAIN_SEEDS))
     timed("train plain", times, lambda: train(plain_run, root / "demos", root / "more", start=root / "base"))
     plain = timed("eval plain", times, lambda: evaluate(plain_run, args.episodes))
 

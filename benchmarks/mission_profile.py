@@ -105,11 +105,11 @@ def profiled(argv: list[str], raw: pathlib.Path, env: dict[str, str]) -> float:
 
 def default_steps(env_id: str, inputs: str) -> int:
     """The gradient steps `gym-fetch train` takes by default for these inputs on `env_id`."""
-    from fetch.learn.kinds import kind
+    from fetch.learn.kinds import pixel_kind
     from fetch.learn.recipes import task_training
 
     if inputs == "pixels":
-        return int(kind("cnn-chunk").training["steps"])
+        return int(pixel_kind().training["steps"])
     return task_training(env_id).steps
 
 
@@ -173,11 +173,12 @@ def main() -> None:
             unit = f"{per_step:.3f} a step"
             size = f"{mission_steps} steps, 1000 demos"
         else:
-            done, count, name = (args.generated, 1000, "demo") if stage == "generate" else (args.episodes, 100,
+            done, count, what = (args.generated, 1000, "demo") if stage == "generate" else (args.episodes, 100,
                                                                                              "episode")
             per_unit = (timing[stage] - startup) / done
-            mission, unit, size = startup + per_unit * count, f"{per_unit:.3f} a {name}", f"{count} {name}s"
+            mission, unit, size = startup + per_unit * count, f"{per_unit:.3f} a {what}", f"{count} {what}s"
         print(f"| {stage} | {timing[stage]:.0f} | {unit} | {mission / 60:.1f} ({size}) | {split} |")
+
 
 if __name__ == "__main__":
     main()

@@ -57,8 +57,6 @@ while True:
 
 def _child(args: argparse.Namespace) -> None:
     """One configuration's seconds a step, as JSON on stdout (OpenMP's setting came with the environment)."""
-    import torch
-
     from benchmarks.pixel_step import LAYOUTS, _batch, _config, _model, _steps
     from fetch.learn.train import hold_freed_memory
 
@@ -67,8 +65,7 @@ def _child(args: argparse.Namespace) -> None:
     model, optimizer = _model(config, next(iter(LAYOUTS.values())))
     batch = _batch(config, args.batch_size)
     _steps(config, model, optimizer, batch, 2, bf16)
-    print(json.dumps({"seconds": _steps(config, model, optimizer, batch, args.steps, bf16),
-                      "threads": torch.get_num_threads(), "bf16": bf16}))
+    print(json.dumps({"seconds": _steps(config, model, optimizer, batch, args.steps, bf16), "bf16": bf16}))
 
 
 def _measure(args: argparse.Namespace, threads: int, openmp: dict[str, str], busy: int) -> dict[str, float]:
