@@ -2,7 +2,8 @@
 
     .venv-lerobot06/bin/python -m benchmarks.side_by_side [--envs Bin-pick-v2,PickPlace-v2,Drawer-open-v2]
         [--inputs state,pixels] [--style person] [--seed 100] [--policies act,diffusion] [--budgets 1,4]
-        [--episodes 100] [--dir /tmp/side_by_side] [--mission-args "--generated 200"]
+        [--episodes 100] [--image-size 84] [--image-quality fast] [--dir /tmp/side_by_side]
+        [--mission-args "--generated 200"]
 
 Run it with the Python of a LeRobot 0.6 venv that also holds gym-fetch-v2 and the plugin
 (`pip install -e ".[lerobot]" -e plugins/lerobot_env_fetch`, docs/lerobot_env.md): every stage runs in that
@@ -45,6 +46,7 @@ from typing import Any
 from benchmarks._machine import machine_line
 from benchmarks.mission import mission_dir
 from fetch.learn import checkpoint
+from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES
 
 LEROBOT_POLICIES: dict[str, tuple[str, ...]] = {
     "act": ("--policy.type=act", "--policy.chunk_size=16", "--policy.n_action_steps=8", "--batch_size=8"),
@@ -137,12 +139,14 @@ def cell(env_id: str, inputs: str, args: argparse.Namespace) -> list[dict[str, A
     """One task and input: ours and each LeRobot policy at each budget, trained and evaluated."""
     from fetch.learn.evaluate import wilson
 
-    root = pathlib.Path(args.dir).resolve() / env_id / inputs
+    seeing = f"pixels{args.image_size}-{args.image_quality}" if inputs == "pixels" else inputs
+    root = pathlib.Path(args.dir).resolve() / env_id / seeing  # a cell per image size and quality
     root.mkdir(parents=True, exist_ok=True)
     log, records = root / "log.txt", Records(root / "records.json")
     missions = pathlib.Path(args.dir).resolve() / "mission"
-    image = ["--inputs", "pixels"] if inputs == "pixels" else []
-    stages = mission_dir(missions, env_id, args.style, inputs)  # the mission's default image size and quality
+    image = (["--inputs", "pixels", "--image-size", str(args.image_size), "--image-quality", args.image_quality]
+             if inputs == "pixels" else [])
+    stages = mission_dir(missions, env_id, args.style, inputs, args.image_size, args.image_quality)
 
     def mission() -> dict[str, Any]:
         call([sys.executable, "-m", "benchmarks.mission", "--env", env_id, "--style", args.style, "--seed",
@@ -241,6 +245,9 @@ def main() -> None:
     parser.add_argument("--policies", default="act,diffusion", help=f"of {', '.join(LEROBOT_POLICIES)}")
     parser.add_argument("--budgets", default="1,4", help="LeRobot's training time, as multiples of ours")
     parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--image-size", type=int, default=84, help="the camera cells' images' side [px]")
+    parser.add_argument("--image-quality", default=DEFAULT_IMAGE_QUALITY, choices=IMAGE_QUALITIES,
+                        help="the camera cells' rendering (benchmarks.mission)")
     parser.add_argument("--dir", default="/tmp/side_by_side")
     parser.add_argument("--mission-args", default="",
                         help="more benchmarks.mission flags, e.g. \"--demos 2 --generated 10\" (use another --dir)")
