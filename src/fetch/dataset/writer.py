@@ -78,6 +78,25 @@ def package_versions() -> dict[str, str]:
             "python": sys.version.split()[0]}
 
 
+def _differences(key: str, theirs: Any, mine: Any) -> list[str]:
+    """One line per setting that differs between a dataset's record and this session's, nested settings named by
+    their path (`settings.generate.noise`), so the one that differs is found at a glance."""
+    if isinstance(theirs, dict) and isinstance(mine, dict):
+        return [line for name in sorted(set(theirs) | set(mine), key=str)
+                for line in _differences(f"{key}.{name}", theirs.get(name, _ABSENT), mine.get(name, _ABSENT))]
+    if theirs == mine:
+        return []
+    return [f"{key}: the dataset has {theirs!r}, this session {mine!r}"]
+
+
+class _Absent:
+    def __repr__(self) -> str:
+        return "(none)"
+
+
+_ABSENT = _Absent()
+
+
 def _same_layout(recorded: Any, layout: schema.Layout) -> bool:
     """Whether a dataset's layout attribute describes `layout` (its JSON may predate a field)."""
     try:
@@ -243,8 +262,7 @@ class DatasetWriter(BackgroundWriter):
             mine["model_hash"] = h.legacy_model_hash  # recorded before the hash was install-independent
         if _same_layout(attrs.get("layout"), h.layout):
             mine["layout"] = attrs["layout"]  # the same layout, written before image_quality existed
-        differences = [f"{key}: the dataset has {attrs.get(key)!r}, this session {value!r}"
-                       for key, value in mine.items() if attrs.get(key) != value]
+        differences = [line for key, value in mine.items() for line in _differences(key, attrs.get(key), value)]
         if differences:
             raise DatasetError(f"{self.index_path} holds demos recorded differently, so this session cannot "
                                "append to it:\n  " + "\n  ".join(differences)
