@@ -27,9 +27,10 @@ from fetch.experts import make_expert
 from fetch.generate import run
 from fetch.generate.attempt import Generator, Options, Result
 from fetch.generate.room import CLEARANCE, FINGER_WIDTH, FINGERTIPS, pass_over
-from fetch.generate.segments import Segment, annotate, from_frame, to_frame
+from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
 from fetch.generate.sources import load_sources
 from fetch.generate.workers import RESTARTS, Work
+from fetch.robot import ACTION_STEP, HAND_RESPONSE
 from fetch.tasks import task_class
 from fetch.tasks.subtasks import Frame
 
@@ -410,19 +411,22 @@ def test_resume_with_other_settings_is_refused(source: pathlib.Path, serial: pat
     out = tmp_path / "other"
     assert main(gen_argv(source, out, 2, "--workers", "1")) == 0
     assert main(gen_argv(source, out, 4, "--workers", "1", "--noise", "0.05")) == 2
-    assert "recorded differently" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "recorded differently" in err  # and names the one setting that differs, not every one
+    assert "settings.generate.noise: the dataset has 0.1, this session 0.05" in err and "transit_speed" not in err
 
 
 def test_options_added_later_are_recorded_only_when_on(source: pathlib.Path, serial: pathlib.Path,
                                                        tmp_path: pathlib.Path) -> None:
     """`--retries 0 --no-fit-opening --no-steady-fit` records the settings as generate did before those options
-    existed (so such a dataset resumes with them), as does a `--finger-noise` equal to `--noise` (the default) and
-    `--starts all` (the default); the defaults record the three, and another finger noise records that too."""
+    existed (so such a dataset resumes with them), as does a `--finger-noise` equal to `--noise` (the default),
+    `--starts all` and `--hand-response 1` (the defaults); the defaults record the three, and another finger noise
+    or hand response records that too."""
     later = {"retries", "fit_opening", "steady_fit"}
     with open_dataset(serial) as ds:
         recorded = ds.settings["generate"]
         assert recorded["retries"] == 1 and recorded["fit_opening"] is True and recorded["steady_fit"] is True
-        assert "finger_noise" not in recorded and "starts" not in recorded
+        assert "finger_noise" not in recorded and "starts" not in recorded and "hand_response" not in recorded
     before = tmp_path / "before"
     assert main(gen_argv(source, before, 2, "--workers", "1", "--retries", "0", "--no-fit-opening",
                          "--no-steady-fit", "--finger-noise", "0.1")) == 0
@@ -432,6 +436,10 @@ def test_options_added_later_are_recorded_only_when_on(source: pathlib.Path, ser
     assert main(gen_argv(source, metres, 2, "--workers", "1", "--finger-noise", "0.005")) == 0
     with open_dataset(metres) as ds:
         assert ds.settings["generate"]["finger_noise"] == 0.005
+    following = tmp_path / "following"
+    assert main(gen_argv(source, following, 2, "--workers", "1", "--hand-response", str(HAND_RESPONSE))) == 0
+    with open_dataset(following) as ds:
+        assert ds.settings["generate"]["hand_response"] == HAND_RESPONSE
 
 
 def test_tight_starts_on_a_task_without_any_is_one_error(source: pathlib.Path, tmp_path: pathlib.Path,
@@ -484,6 +492,85 @@ def test_a_drawer_task_generates_too(tmp_path: pathlib.Path) -> None:
         assert all(set(ds.arrays(n)["subtasks"].tolist()) == {0, 1} for n in ds.demo_names)
 
 
+@pytest.mark.parametrize("env_id", ["PickPlace-v2", "Drawer-close-v2"])
+def test_the_hand_covers_hand_response_of_a_commanded_step(env_id: str) -> None:
+    """`HAND_RESPONSE` is what the physics does: moving freely along any axis, either way, slow or fast, the hand
+    covers that share of each commanded step once moving (the first step from rest a little less). Upwards only
+    along z: downwards the hand soon meets the table, or Drawer-close's cabinet under it."""
+    env = gym.make(env_id)
+    try:
+        for axis in range(3):
+            for a in (-1.0, -0.3, 0.3, 1.0) if axis < 2 else (0.3, 1.0):
+                env.reset(seed=3)
+                action = np.zeros(4, np.float32)
+                action[axis], action[3] = a, 1.0
+                shares = []
+                for _ in range(3):
+                    before = held_grip(env.unwrapped).copy()
+                    env.step(action)
+                    shares.append((held_grip(env.unwrapped) - before)[axis] / (ACTION_STEP * a))
+                assert 0.55 <= shares[0] < HAND_RESPONSE, (axis, a, shares)
+                assert np.allclose(shares[1:], HAND_RESPONSE, atol=0.025), (axis, a, shares)
+    finally:
+        env.close()
+
+
+def test_drawer_close_follows_the_path_unless_told_and_other_tasks_do_not(tmp_path: pathlib.Path) -> None:
+    """`--hand-response` unset is the task's: Drawer-close's datasets record `HAND_RESPONSE`, other tasks' record
+    nothing (1, as before the option), and a number given is what is recorded."""
+    src = collect("Drawer-close-v2", tmp_path / "src", episodes=2)
+    for more, recorded in (([], HAND_RESPONSE), (["--hand-response", "1"], None)):
+        out = tmp_path / f"gen{len(more)}"
+        assert main(["generate", "--source", str(src), "--out", str(out), "--demos", "2", "--workers", "1",
+                     *more]) == 0
+        with open_dataset(out) as ds:
+            assert ds.settings["generate"].get("hand_response") == recorded
+    assert run.task_hand_response("PickPlace-v2") == 1.0
+
+
+def test_with_the_hands_response_a_step_gets_to_its_target(source: pathlib.Path) -> None:
+    """A step towards a point 3 cm off gets within 4 mm of it when generate takes the hand's response into account
+    (`Options.hand_response`), and stops over a centimetre short when it takes the hand to go where it is told."""
+    sources = load_sources(source)
+    short = {}
+    for response in (1.0, HAND_RESPONSE):
+        gen = Generator(sources.env_id, sources.env_kwargs, sources.segments,
+                        Options(max_steps=50, noise=0.0, hand_response=response), 0)
+        try:
+            obs, _ = gen.env.reset(seed=3)
+            gen.buffer.begin(obs, gen.base.get_state())
+            target = held_grip(gen.base) + np.array([0.03, 0.0, 0.0])
+            gen._step(target, 1.0, None, np.random.default_rng(0), 0)
+            short[response] = float(np.linalg.norm(target - held_grip(gen.base)))
+        finally:
+            gen.close()
+    assert short[HAND_RESPONSE] < 0.004 < 0.01 < short[1.0], short
+
+
+def test_following_the_path_brings_the_fingers_down_in_the_drawers_slot(tmp_path: pathlib.Path) -> None:
+    """Drawer-close's demos hook the fingers into the 4 cm slot behind the handle. Commanding the path as if the
+    hand got all the way, the hand trails it by 1-1.5 cm and, in a share of the demos, comes down on the drawer's
+    front and never into the slot (the drawer dragged shut by friction); with the hand's response taken into
+    account (nearly) every demo's fingers go into it."""
+    src = collect("Drawer-close-v2", tmp_path / "src", episodes=3)
+    sources = load_sources(src)
+    env = gym.make("Drawer-close-v2")
+    grip_pos = env.unwrapped.observation_layout["grip_pos"]
+    env.close()
+    never = {}
+    for response in (1.0, HAND_RESPONSE):
+        gen = Generator(sources.env_id, sources.env_kwargs, sources.segments,
+                        Options(max_steps=50, hand_response=response), 100)
+        try:
+            demos = [d for d in (gen.attempt(number).demo for number in range(30)) if d is not None]
+        finally:
+            gen.close()
+        # the fingertips below the top of the drawer's front: in the slot (or in front of the handle)
+        never[response] = sum(not (d.arrays["obs/observation"][:, grip_pos][:, 2] < 0.51).any() for d in demos)
+        assert len(demos) >= 20, (response, len(demos))
+    assert never[HAND_RESPONSE] <= 2 and never[1.0] >= 5, never
+
+
 # -- bad input --------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize(("more", "message"), [
@@ -492,6 +579,7 @@ def test_a_drawer_task_generates_too(tmp_path: pathlib.Path) -> None:
     (["--noise", "-1"], "--noise must be a finite standard deviation"),
     (["--finger-noise", "nan"], "--finger-noise must be a finite standard deviation"),
     (["--max-steps", "0"], "--max-steps must be at least 1"),
+    (["--hand-response", "0"], "--hand-response must be a number from 0.1 to 1"),
 ])
 def test_bad_arguments_are_named(source: pathlib.Path, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str],
                                  more: list[str], message: str) -> None:

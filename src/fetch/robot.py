@@ -16,6 +16,12 @@ from fetch.timing import N_SUBSTEPS
 ACTION_STEP = 0.05
 """[m] how far the hand's target moves along each world axis per step at |a| = 1 (the classic suite)."""
 
+HAND_RESPONSE = 0.64
+"""The share of a commanded move (`ACTION_STEP * a[:3]`) the hand covers in one step, free of contact: the
+target is put there, the weld pulls the arm towards it for the step's substeps, and the next step moves from
+where the hand got to (`Robot.hold`). Measured on every axis and task at 0.63-0.66 once moving, 0.57-0.59 on
+the first step from rest (tests/test_generate.py checks it)."""
+
 QUAT_STEP = np.array([1.0, 0.0, 1.0, 0.0])
 """Added to the hand's orientation quaternion each step (MuJoCo normalises the sum), as in the
 classic suite: the target orientation is halfway between the hand's and fingers-down."""

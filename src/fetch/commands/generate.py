@@ -50,6 +50,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
                    help="all (default): attempts from every start the env draws; tight: only from those where the "
                         "object stands close beside something along the fingers' axis (a bin's wall), skipping the "
                         "rest: a second dataset of those rare starts to train on beside the first (docs/generate.md)")
+    g.add_argument("--hand-response", type=float, default=None, metavar="SHARE",
+                   help="the share of a commanded step the hand is taken to cover: each step commands its distance "
+                        "to the carried-over path divided by it (1: the hand, covering 0.64, trails a moving path by "
+                        "1-1.5 cm; 0.64 follows it; default: 0.64 on Drawer-close-v2, 1 elsewhere; docs/generate.md)")
     g.add_argument("--max-attempts", type=int, default=None, help="give up after this many (default 50 per demo)")
     flags.add_images(g, flags.GENERATE)
     g.add_argument("--looks", default=None, choices=LOOKS,
@@ -66,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
     options = Options(max_steps=args.max_steps, success_hold_steps=args.success_hold_steps, selection=args.selection,
                       nearest_k=args.nearest_k, noise=args.noise, finger_noise=args.finger_noise,
                       stop_on_success=args.stop_on_success, retries=args.retries, fit_opening=args.fit_opening,
-                      steady_fit=args.steady_fit, starts=args.starts)
+                      steady_fit=args.steady_fit, starts=args.starts,
+                      hand_response=args.hand_response)
     config = GenerateConfig(source=args.source, out=args.out, demos=args.demos, seed=args.seed,
                             workers=args.workers, options=options, max_attempts=args.max_attempts, ray=args.ray,
                             cameras=flags.camera_list(args.cameras), image_size=args.image_size,

@@ -25,7 +25,7 @@ from fetch.dataset.dirs import require_apart
 from fetch.dataset.formats import open_writer
 from fetch.dataset.reader import open_dataset
 from fetch.errors import FetchError
-from fetch.generate.attempt import Options, Result
+from fetch.generate.attempt import Options, Result, task_hand_response
 from fetch.generate.sources import Sources, load_sources
 from fetch.generate.workers import Backend, Pool, RayCluster, Serial, Work, default_workers
 from fetch.looks import check_looks
@@ -119,8 +119,9 @@ class Summary:
 
 def settings_of(sources: Sources, options: Options, seed: int) -> dict[str, Any]:
     """What the dataset records as made it; a resumed run must match every field. `retries` 0, `fit_opening` and
-    `steady_fit` off, `starts` "all" and a `finger_noise` equal to `noise` are left out, so that a dataset generated
-    before they existed resumes with `--retries 0 --no-fit-opening --no-steady-fit --finger-noise <its noise>`."""
+    `steady_fit` off, `starts` "all", `hand_response` 1 and a `finger_noise` equal to `noise` are left out, so that
+    a dataset generated before they existed resumes with `--retries 0 --no-fit-opening --no-steady-fit
+    --finger-noise <its noise>`."""
     recorded = dataclasses.asdict(options)
     recorded["finger_noise"] = options.finger_std
     if options.finger_std == options.noise:
@@ -130,6 +131,8 @@ def settings_of(sources: Sources, options: Options, seed: int) -> dict[str, Any]
             del recorded[name]
     if recorded["starts"] == "all":
         del recorded["starts"]
+    if recorded["hand_response"] == 1:
+        del recorded["hand_response"]
     return {"max_steps": options.max_steps, "success_hold_steps": options.success_hold_steps,
             "stop_on_success": options.stop_on_success, "ignore_env_done": False,
             "generate": {"source": sources.path, "source_fingerprint": sources.fingerprint,
@@ -179,6 +182,8 @@ def generate(config: GenerateConfig, log: Callable[[str], None] | None = None) -
     options = config.options or Options()
     if options.max_steps is None:
         options = dataclasses.replace(options, max_steps=sources.attempt_steps(options.success_hold_steps))
+    if options.hand_response is None:
+        options = dataclasses.replace(options, hand_response=task_hand_response(sources.env_id))
     if sources.skipped:
         say(f"{len(sources.skipped)} source demo(s) could not be cut into {', '.join(sources.subtasks)} "
             f"and are not used: {', '.join(sources.skipped[:5])}")
