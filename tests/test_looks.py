@@ -151,7 +151,7 @@ def test_generate_looks_random_records_the_looks_render_obs_draws_again(tmp_path
     capsys.readouterr()
     assert main(gen_argv(source, out, 3, "--workers", "1", "--stop-on-success", "--cameras", "front",
                          "--image-size", str(SIZE), "--looks", "plain")) != 0
-    assert "'looks': 'random'" in capsys.readouterr().err  # the writer names what differs
+    assert "env_kwargs.looks: the dataset has 'random', this session (none)" in capsys.readouterr().err  # what differs
     with open_dataset(out) as ds:
         assert len(ds.demo_names) == 2
 
