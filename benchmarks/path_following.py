@@ -38,9 +38,17 @@ EARLY = 20
 """[steps] a hook by this step is the source's timing (its pad demos hooked at steps 12-20)."""
 
 
-def stats(dataset: pathlib.Path, env_id: str) -> dict[str, Any]:
-    """The demos' figures (module docstring) from a generated dataset."""
-    grip = gym.make(env_id).unwrapped.observation_layout["grip_pos"]
+def grip_slice(env_id: str) -> slice:
+    """Where the grip site's position lies in `env_id`'s observation."""
+    env = gym.make(env_id)
+    try:
+        return env.unwrapped.observation_layout["grip_pos"]
+    finally:
+        env.close()
+
+
+def stats(dataset: pathlib.Path, grip: slice) -> dict[str, Any]:
+    """The demos' figures (module docstring) from a generated dataset; `grip`: `grip_slice` of its task."""
     hooks = {"early": 0, "later": 0, "never": 0}
     with open_dataset(dataset) as ds:
         response = float(ds.settings["generate"].get("hand_response", 1.0))
@@ -68,6 +76,7 @@ def main() -> None:
     print(machine_line())
     rows = []
     for env_id in tasks:
+        grip = grip_slice(env_id)
         source = pathlib.Path(args.source) if args.source else out / env_id / "expert"
         if not source.exists():
             assert gym_fetch(["collect", "--env", env_id, "--device", "expert", "--episodes", "10", "--render", "none",
@@ -82,7 +91,7 @@ def main() -> None:
             else:
                 assert gym_fetch(["generate", "--source", str(source), "--out", str(target), "--demos",
                                   str(args.demos), "--workers", "1", "--seed", "100", "--hand-response", response]) == 0
-            rows.append((env_id, f"{source.parent.name}/{source.name}", stats(target, env_id)))
+            rows.append((env_id, f"{source.parent.name}/{source.name}", stats(target, grip)))
     print("\n| task | from | hand response | demos (attempts) | kept | drawer: fingers below its front by step 20 / "
           "later / never |")
     print("|---|---|---|---|---|---|")

@@ -25,7 +25,7 @@ from fetch.cli import main
 from fetch.dataset import open_dataset
 from fetch.experts import make_expert
 from fetch.generate import run
-from fetch.generate.attempt import Generator, Options, Result
+from fetch.generate.attempt import Generator, Options, Result, task_hand_response
 from fetch.generate.room import CLEARANCE, FINGER_WIDTH, FINGERTIPS, pass_over
 from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
 from fetch.generate.sources import load_sources
@@ -525,7 +525,7 @@ def test_drawer_close_follows_the_path_unless_told_and_other_tasks_do_not(tmp_pa
                      *more]) == 0
         with open_dataset(out) as ds:
             assert ds.settings["generate"].get("hand_response") == recorded
-    assert run.task_hand_response("PickPlace-v2") == 1.0
+    assert task_hand_response("PickPlace-v2") == 1.0
 
 
 def test_with_the_hands_response_a_step_gets_to_its_target(source: pathlib.Path) -> None:
