@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.dataset.reader import FILE_HELP
 from fetch.rendering import IMAGE_QUALITIES, QUALITY_HELP
 
@@ -13,7 +14,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     o = sub.add_parser("render-obs", help="add a camera's images to every demo, rendered from the saved states")
     o.add_argument("file", help=FILE_HELP)
     o.add_argument("--camera", required=True, help="a camera of the env, e.g. front or wrist")
-    o.add_argument("--size", type=int, default=84, help="image width and height [px] (default 84)")
+    o.add_argument("--size", type=int, default=None,
+                   help=f"image width and height [px] (default: the dataset's images', else {DEFAULT_IMAGE_SIZE})")
     o.add_argument("--quality", default=None, choices=IMAGE_QUALITIES,
                    help=QUALITY_HELP.replace("the default", "the default for a dataset without images; one with "
                                              "images keeps theirs"))

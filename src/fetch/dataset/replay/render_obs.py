@@ -20,6 +20,7 @@ import numpy as np
 
 from fetch._durable import NO_ROOM, Rewrites, why
 from fetch._progress import progress
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.dataset import schema
 from fetch.dataset.demo_file import storage
 from fetch.dataset.holding import editing
@@ -63,11 +64,13 @@ def _with_camera(layout: schema.Layout, camera: str, size: int, quality: str) ->
     return layout.with_cameras(cameras, size, quality)
 
 
-def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: int | None = None,
+def render_obs(path: str | os.PathLike[str], camera: str, size: int | None = None, workers: int | None = None,
                overwrite: bool = False, quality: str | None = None) -> RenderReport:
-    """Add `obs/<camera>_image` and `next_obs/<camera>_image` (uint8, (T, size, size, 3)) to every demo,
-    drawn at `quality` (`rendering.IMAGE_QUALITIES`; None: the dataset's other images', else the default)."""
-    check_image_size(size, "--size")
+    """Add `obs/<camera>_image` and `next_obs/<camera>_image` (uint8, (T, size, size, 3)) to every demo, `size`
+    [px] (None: that of the images the dataset holds, else `camera_obs.DEFAULT_IMAGE_SIZE`) drawn at `quality`
+    (`rendering.IMAGE_QUALITIES`; None: the dataset's other images', else the default)."""
+    if size is not None:
+        check_image_size(size, "--size")
     if quality is not None:
         check_image_quality(quality, "--quality")
     workers = default_workers() if workers is None else workers
@@ -80,7 +83,9 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int, workers: in
             names = list(ds.demo_names)
             require_valid(ds, names, images=False)
             where = {name: ds.demo_file(name, write=True) for name in names}
-        if layout.cameras and size != layout.image_size:
+        if size is None:
+            size = layout.image_size if layout.cameras else DEFAULT_IMAGE_SIZE
+        elif layout.cameras and size != layout.image_size:
             raise FetchError(f"{index} holds {layout.image_size}-pixel images ({', '.join(layout.cameras)}); a "
                              f"dataset has one image size, so use --size {layout.image_size}")
         others = [c for c in layout.cameras if c != camera]
