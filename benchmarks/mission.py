@@ -2,7 +2,7 @@
 
     .venv-train/bin/python -m benchmarks.mission [--env PickPlace-v2] [--style standin] [--demos 10]
         [--generated 1000] [--generate-noise STD] [--workers 2] [--dir /tmp/mission]
-        [--inputs pixels [--image-size 84] [--image-quality fast]] [--generate-args "--retries 0"]
+        [--inputs pixels [--image-size 64] [--image-quality fast]] [--generate-args "--retries 0"]
         [--train-args "--steps 3000"]
 
 1. teleop: 10 demos through the real gamepad path (SDL's virtual pad, the real `GamepadDevice` and
@@ -31,6 +31,7 @@ import sys
 import time
 
 from benchmarks._machine import machine_line
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES
 
 
@@ -60,8 +61,8 @@ def demo_length(path: pathlib.Path) -> float:
         return sum(int(ds.attrs(n)["num_samples"]) for n in ds.demo_names) / max(1, len(ds.demo_names))
 
 
-def mission_dir(base: str | pathlib.Path, env_id: str, style: str, inputs: str = "state", image_size: int = 84,
-                image_quality: str = DEFAULT_IMAGE_QUALITY) -> pathlib.Path:
+def mission_dir(base: str | pathlib.Path, env_id: str, style: str, inputs: str = "state",
+                image_size: int = DEFAULT_IMAGE_SIZE, image_quality: str = DEFAULT_IMAGE_QUALITY) -> pathlib.Path:
     """Where a mission keeps its stages under `--dir` `base`: one folder per task and style, and per image size and
     quality for the camera path (its pad demos are the same as the state path's for the same seed)."""
     root = pathlib.Path(base) / env_id
@@ -117,7 +118,8 @@ def main() -> None:
     parser.add_argument("--dir", default="/tmp/mission")
     parser.add_argument("--inputs", default="state", choices=("state", "pixels"),
                         help="what the policy sees (gym-fetch train --inputs; default state)")
-    parser.add_argument("--image-size", type=int, default=84, help="--inputs pixels: the images' side [px]")
+    parser.add_argument("--image-size", type=int, default=DEFAULT_IMAGE_SIZE,
+                        help=f"--inputs pixels: the images' side [px] (default {DEFAULT_IMAGE_SIZE}, generate's)")
     parser.add_argument("--image-quality", default=DEFAULT_IMAGE_QUALITY, choices=IMAGE_QUALITIES,
                         help="--inputs pixels: how the images are drawn (default %(default)s, generate's)")
     parser.add_argument("--generate-args", default="",

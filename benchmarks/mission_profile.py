@@ -1,7 +1,7 @@
 """Where a mission's time goes: each stage's wall time split by what its processes were doing.
 
     python -m benchmarks.mission_profile [--env Bin-place-v2] [--inputs pixels|state] [--isa native|avx2]
-        [--source DEMOS] [--generated 40] [--steps 100] [--episodes 20] [--dir /tmp/mission_profile]
+        [--image-size 64] [--source DEMOS] [--generated 40] [--steps 100] [--episodes 20] [--dir /tmp/mission_profile]
 
 The stages of `benchmarks.mission` (`gym-fetch generate`, `train`, `eval`), run as the mission runs them
 but smaller, each under py-spy (`pip install py-spy`), which samples every process's Python stack 50 times a
@@ -33,6 +33,7 @@ import sys
 import time
 
 from benchmarks._machine import machine_line
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 
 RATE = 50
 """[Hz] py-spy's samples a second."""
@@ -118,6 +119,8 @@ def main() -> None:
     parser.add_argument("--env", default="Bin-place-v2")
     parser.add_argument("--inputs", default="pixels", choices=("state", "pixels"))
     parser.add_argument("--isa", default="native", choices=("native", "avx2"))
+    parser.add_argument("--image-size", type=int, default=DEFAULT_IMAGE_SIZE,
+                        help=f"--inputs pixels: the images' side [px] (default {DEFAULT_IMAGE_SIZE}, generate's)")
     parser.add_argument("--source", help="pad demos to generate from (default: 10 scripted expert demos)")
     parser.add_argument("--generated", type=int, default=40)
     parser.add_argument("--steps", type=int, default=100)
@@ -125,7 +128,8 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--dir", default="/tmp/mission_profile")
     args = parser.parse_args()
-    root = pathlib.Path(args.dir) / f"{args.env}-{args.inputs}-{args.isa}"
+    seeing = f"pixels{args.image_size}" if args.inputs == "pixels" else args.inputs
+    root = pathlib.Path(args.dir) / f"{args.env}-{seeing}-{args.isa}"
     root.mkdir(parents=True, exist_ok=True)
     env = {**os.environ, **(AVX2 if args.isa == "avx2" else {})}
     cli = [sys.executable, "-m", "fetch.cli"]
@@ -133,7 +137,7 @@ def main() -> None:
     if not args.source and not source.exists():
         subprocess.run([*cli, "collect", "--env", args.env, "--device", "expert", "--episodes", "10", "--render",
                         "none", "--out", str(source)], check=True, env=env, stdout=subprocess.DEVNULL)
-    cameras = ["--cameras", "front,wrist", "--image-size", "84", "--image-quality", "fast"] \
+    cameras = ["--cameras", "front,wrist", "--image-size", str(args.image_size), "--image-quality", "fast"] \
         if args.inputs == "pixels" else []
     precision = ["--precision", "fp32"] if args.isa == "avx2" and args.inputs == "pixels" else []
     inputs = ["--inputs", "pixels"] if args.inputs == "pixels" else []
@@ -153,7 +157,8 @@ def main() -> None:
     mission_steps = default_steps(args.env, args.inputs)
     print(machine_line("torch"))
     held = ", torch held to AVX2 (fp32)" if args.isa == "avx2" else ""
-    print(f"{args.env} from the {args.inputs}{held}: generate {args.generated} demos from "
+    size = f" at {args.image_size} px" if args.inputs == "pixels" else ""
+    print(f"{args.env} from the {args.inputs}{size}{held}: generate {args.generated} demos from "
           f"{'--source ' + str(source) if args.source else '10 expert demos'} ({args.workers} workers), train "
           f"{args.steps} steps, eval {args.episodes} episodes; py-spy at {RATE} Hz\n")
     print("| stage | wall [s] | a unit [s] | at the mission's size [min] | where the time goes |")

@@ -3,7 +3,7 @@
     .venv-train/bin/python -m benchmarks.pixel_curves --mission /tmp/mission [--tasks PickPlace-v2]
         [--results /tmp/gym-fetch-learning-curves] [--records FILE] [--seeds 0,1,2] [--limit K]
 
-The demos are those `benchmarks.mission --env TASK --inputs pixels --dir /tmp/mission` generated for a task
+The demos are those `benchmarks.mission --env TASK --inputs pixels --image-size 84 --dir /tmp/mission` made
 (the stand-in's 10 pad demos multiplied by `gym-fetch generate --cameras front,wrist --image-size 84`, drawn
 "fast", from every start: 900 of them in mask/train, 720 where the mission made a fifth of its 1000 from tight
 starts, a dataset of its own that this does not use): run that first. Each run trains, with `gym-fetch train`'s
@@ -77,7 +77,7 @@ def generated(mission: pathlib.Path, task: str) -> pathlib.Path:
     path = mission / task / f"standin-pixels84-{DEFAULT_IMAGE_QUALITY}" / "generated"
     if not path.exists():
         raise SystemExit(f"{path}: no generated demos with images; run `python -m benchmarks.mission --env {task} "
-                         f"--inputs pixels --dir {mission}` first")
+                         f"--inputs pixels --image-size 84 --dir {mission}` first")
     return path
 
 

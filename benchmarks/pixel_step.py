@@ -1,10 +1,10 @@
 """One training step of the pixel policy (`cnn-chunk`): the images' memory layout and malloc's settings.
 
-    python -m benchmarks.pixel_step [--batch-size 64] [--image-size 84] [--cameras front,wrist]
+    python -m benchmarks.pixel_step [--batch-size 64] [--image-size 64] [--cameras front,wrist]
         [--steps 10] [--rounds 4] [--threads N] [--precision fp32|bf16|auto]
 
 What `gym-fetch train --inputs pixels` does per step, on made-up images and targets of the mission's shapes
-(a batch of 64 examples, two cameras at 84 x 84, Bin-place's 25-entry input): the random shift, both
+(a batch of 64 examples, two cameras at 64 x 64 (`--image-size`), Bin-place's 25-entry input): the random shift, both
 encoders, the heads, the loss with the unseen-state guess, backward and Adam, under `torch.autocast` in
 bf16 where `--precision` says so (auto: bf16 where the CPU computes it natively, as `train` decides).
 The layouts:
@@ -35,6 +35,7 @@ import time
 import torch
 
 from benchmarks._machine import machine
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.learn.kinds import PolicyConfig
 from fetch.learn.pixels import PixelChunk, pixel_loss
 from fetch.learn.policies import ACTION_SIZE, Batch
@@ -103,7 +104,7 @@ def _config(args: argparse.Namespace) -> tuple[PolicyConfig, bool]:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     p.add_argument("--batch-size", type=int, default=64)
-    p.add_argument("--image-size", type=int, default=84)
+    p.add_argument("--image-size", type=int, default=DEFAULT_IMAGE_SIZE)
     p.add_argument("--cameras", default="front,wrist")
     p.add_argument("--steps", type=int, default=10, help="timed steps per layout and process")
     p.add_argument("--rounds", type=int, default=4)

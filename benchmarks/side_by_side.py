@@ -2,7 +2,7 @@
 
     .venv-lerobot06/bin/python -m benchmarks.side_by_side [--envs Bin-pick-v2,PickPlace-v2,Drawer-open-v2]
         [--inputs state,pixels] [--style person] [--seed 100] [--policies act,diffusion] [--budgets 1,4]
-        [--episodes 100] [--image-size 84] [--image-quality fast] [--dir /tmp/side_by_side]
+        [--episodes 100] [--image-size 64] [--image-quality fast] [--dir /tmp/side_by_side]
         [--mission-args "--generated 200"]
 
 Run it with the Python of a LeRobot 0.6 venv that also holds gym-fetch-v2 and the plugin
@@ -45,6 +45,7 @@ from typing import Any
 
 from benchmarks._machine import machine_line
 from benchmarks.mission import mission_dir
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.learn import checkpoint
 from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES
 
@@ -245,7 +246,8 @@ def main() -> None:
     parser.add_argument("--policies", default="act,diffusion", help=f"of {', '.join(LEROBOT_POLICIES)}")
     parser.add_argument("--budgets", default="1,4", help="LeRobot's training time, as multiples of ours")
     parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--image-size", type=int, default=84, help="the camera cells' images' side [px]")
+    parser.add_argument("--image-size", type=int, default=DEFAULT_IMAGE_SIZE,
+                        help=f"the camera cells' images' side [px] (default {DEFAULT_IMAGE_SIZE}, generate's)")
     parser.add_argument("--image-quality", default=DEFAULT_IMAGE_QUALITY, choices=IMAGE_QUALITIES,
                         help="the camera cells' rendering (benchmarks.mission)")
     parser.add_argument("--dir", default="/tmp/side_by_side")

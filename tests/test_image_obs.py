@@ -237,3 +237,25 @@ def test_the_vector_env_s_render_threads_are_released_on_close(monkeypatch: pyte
     vec.close()
     assert spy.closed == threads
     assert not any(t.name.startswith("fetch-render") for t in threading.enumerate())
+
+
+def test_every_way_of_recording_images_has_the_envs_default_size() -> None:
+    """`cameras=` observations, `collect --cameras`, `generate --cameras` and `render-obs` on a dataset without
+    images all draw at `camera_obs.DEFAULT_IMAGE_SIZE`, 64 x 64 (docs/rendering.md): a policy trained on one
+    acts on the others' images without a flag."""
+    from fetch.camera_obs import DEFAULT_IMAGE_SIZE
+    from fetch.cli import _parser
+    from fetch.generate.run import GenerateConfig
+    from fetch.teleop.config import CollectConfig
+
+    assert DEFAULT_IMAGE_SIZE == 64
+    env = gym.make("Reach-v2", cameras=("front",))
+    try:
+        assert env.reset(seed=0)[0]["front_image"].shape == (64, 64, 3)
+    finally:
+        env.close()
+    assert CollectConfig(env_id="Reach-v2").image_size == GenerateConfig(source="s", out="o", demos=1).image_size == 64
+    parser = _parser()
+    for argv in (["collect", "--env", "Reach-v2"], ["generate", "--source", "s", "--out", "o", "--demos", "1"]):
+        assert parser.parse_args(argv).image_size == 64, argv
+    assert parser.parse_args(["render-obs", "d", "--camera", "front"]).size is None  # the dataset's, else 64

@@ -21,7 +21,7 @@ ENV = "Bin-pick-v2"
 """A grasp into a bin: the block's place and the walls beside it are in the images, not in what the policy reads."""
 CAMERAS = ("front", "wrist")
 SIZE = 32
-"""[px] the images' side: small, so a mission takes seconds; the benchmark measures what 84 px learns."""
+"""[px] the images' side: small, so a mission takes seconds; the benchmark measures what the default 64 px learns."""
 TINY = ["--steps", "5", "--hidden", "32", "--batch-size", "16", "--checkpoint-every", "10"]
 EPISODES = 2
 

@@ -17,7 +17,7 @@ from fetch.errors import FetchError
 
 TINY = ["--hidden", "32", "--batch-size", "16", "--checkpoint-every", "10"]
 SIZE = 16
-"""[px] the images' side: small, so the tests are quick; the benchmark measures what 84 px learns."""
+"""[px] the images' side: small, so the tests are quick; the benchmark measures what the default 64 px learns."""
 
 
 @pytest.fixture(scope="module")

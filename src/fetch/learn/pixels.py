@@ -32,7 +32,8 @@ from fetch.learn.policies import ACTION_SIZE, Batch, ChunkActor, Kind, Members, 
 KEYPOINTS = 32
 """Feature maps (and so image points) per camera."""
 SHIFT = 4
-"""[px] the largest random shift of a training image, each way (DrQ's, at 84 x 84)."""
+"""[px] the largest random shift of a training image, each way (DrQ's 4 px, at 84 x 84; the same 4 px at the
+default 64 x 64, where the camera missions were measured with it)."""
 CHANNELS = 32
 UNSEEN_WEIGHT = 1.0
 """How much the encoder's guess of the unseen state counts in training beside the actions (0: not at all)."""

@@ -11,6 +11,7 @@ import dataclasses
 import pathlib
 from typing import Any, cast
 
+from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.dataset.formats import check_format
 from fetch.errors import FetchError, UnknownNameError
 from fetch.rendering import DEFAULT_IMAGE_QUALITY, check_camera_list, check_image_quality, check_image_size
@@ -54,7 +55,7 @@ class CollectConfig:
     format: str = "hdf5"
     reward_type: str = "sparse"
     cameras: tuple[str, ...] = ()
-    image_size: int = 84
+    image_size: int = DEFAULT_IMAGE_SIZE
     image_quality: str = DEFAULT_IMAGE_QUALITY
     """how `cameras`' images are drawn (`rendering.IMAGE_QUALITIES`)."""
     verbose: bool = False
