@@ -205,6 +205,22 @@ def test_render_obs_adds_a_second_camera_and_refuses_a_second_size(plain: pathli
         assert ds.demo("demo_2")["next_obs/wrist_image"].shape[1:] == (16, 16, 3)
 
 
+def test_render_obs_bounds_the_size_it_takes_from_the_dataset(plain: pathlib.Path, monkeypatch: pytest.MonkeyPatch,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """Without --size the dataset's image size is used, under the bound --size has (lowered here below the
+    dataset's 72 px, above the envs' default 64: a stranger's dataset of images larger than
+    `rendering.MAX_IMAGE_SIZE` is refused alike)."""
+    from fetch import rendering
+
+    assert main(["render-obs", str(plain), "--camera", "front", "--size", "72", "--workers", "1"]) == 0
+    before = everything(plain)
+    monkeypatch.setattr(rendering, "MAX_IMAGE_SIZE", 70)
+    assert main(["render-obs", str(plain), "--camera", "wrist", "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "image size must be a whole number of pixels from 1 to 70, got 72" in err, err
+    assert_same(before, everything(plain))
+
+
 def test_render_obs_failure_leaves_the_dataset_as_it_was(plain: pathlib.Path,
                                                          capsys: pytest.CaptureFixture[str]) -> None:
     with h5py.File(plain / "episodes" / "demo_2.hdf5", "r+") as f:  # a state the env cannot restore

@@ -83,8 +83,9 @@ def render_obs(path: str | os.PathLike[str], camera: str, size: int | None = Non
             names = list(ds.demo_names)
             require_valid(ds, names, images=False)
             where = {name: ds.demo_file(name, write=True) for name in names}
-        if size is None:
+        if size is None:  # the dataset's own size, bounded as --size is (its images match it: require_valid)
             size = layout.image_size if layout.cameras else DEFAULT_IMAGE_SIZE
+            check_image_size(size, f"{index}'s image size")
         elif layout.cameras and size != layout.image_size:
             raise FetchError(f"{index} holds {layout.image_size}-pixel images ({', '.join(layout.cameras)}); a "
                              f"dataset has one image size, so use --size {layout.image_size}")
