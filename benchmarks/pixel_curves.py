@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks._machine import cpu_model, fetch_commit, machine_line
-from fetch.rendering import DEFAULT_IMAGE_QUALITY
+from benchmarks.mission import mission_dir
 
 DEMOS = (10, 100, 0)
 """Demos trained on (the first of mask/train); 0: all of them."""
@@ -48,6 +48,9 @@ RECORDS = pathlib.Path(__file__).resolve().parent / "out" / "pixel_curves.jsonl"
 """Every run's result, one JSON object a line, oldest first: a benchmark's raw output, outside git (benchmarks/out/
 is ignored). Records marked `reconstructed` were rebuilt from a published table: their success exact, their
 training time their row's mean."""
+
+IMAGE_SIZE = 84
+"""[px] the images of the demos this table was made from (the mission's default before 64)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,10 +77,10 @@ def jobs(tasks: list[str], seeds: tuple[int, ...]) -> list[Job]:
 
 def generated(mission: pathlib.Path, task: str) -> pathlib.Path:
     """The mission's generated demos (with images) of `task`; a one-line error where the mission has not run."""
-    path = mission / task / f"standin-pixels84-{DEFAULT_IMAGE_QUALITY}" / "generated"
+    path = mission_dir(mission, task, "standin", "pixels", IMAGE_SIZE) / "generated"
     if not path.exists():
         raise SystemExit(f"{path}: no generated demos with images; run `python -m benchmarks.mission --env {task} "
-                         f"--inputs pixels --image-size 84 --dir {mission}` first")
+                         f"--inputs pixels --image-size {IMAGE_SIZE} --dir {mission}` first")
     return path
 
 
