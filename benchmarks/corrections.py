@@ -2,6 +2,7 @@
 
     python -m benchmarks.corrections --env Bin-pick-v2 --dir /tmp/corr [--demos 100] [--attempts 20]
         [--style person [--seed 100]]
+    python -m benchmarks.corrections --env Bin-place-v2 --style person --mission M/Bin-place-v2/person --dir /tmp/corr
 
 Each stage is skipped when its output is already in --dir, so an interrupted run goes on where it stopped:
 
@@ -20,6 +21,12 @@ Each stage is skipped when its output is already in --dir, so an interrupted run
 5. `plain` (the comparison): as many more demos as corrected attempts, of the same kind (seeds 60000...), then
    `gym-fetch train demos more --from base`, evaluated likewise.
 
+With `--mission M` (a `benchmarks.mission` folder, state or cameras) the round starts from what a user has after
+the whole path: the base is M's policy (`M/run`, not trained again) and its training data M's generated demos,
+which `fixed` and `plain` learn from again beside the corrections or the `--style` stand-in's more pad demos. For
+a camera policy the corrections record the cameras it sees and the more pad demos get them from `render-obs`, at
+its image size and quality.
+
 It prints each stage's time and a table. The stand-in reads the simulator's state, as the expert does; a
 person reads the window. It drives the takeover device directly, not through SDL (the pad path is what
 tests/test_takeover.py checks).
@@ -30,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import shlex
 import time
 from collections.abc import Mapping
 from typing import Any
@@ -37,6 +45,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+import fetch.learn
 from benchmarks._machine import machine_line
 from benchmarks.mission import teleop
 from fetch.cli import main as gym_fetch
@@ -119,8 +128,9 @@ def timed(what: str, times: dict[str, float], run: Any) -> Any:
     return out
 
 
-def evaluate(run: pathlib.Path, episodes: int) -> dict[str, Any]:
-    report = run / f"eval-{episodes}.json"
+def evaluate(run: pathlib.Path, episodes: int, report: pathlib.Path | None = None) -> dict[str, Any]:
+    """`gym-fetch eval` of `run` on `episodes` unseen seeds; its report at `report` (default: in `run`)."""
+    report = report or run / f"eval-{episodes}.json"
     if not report.exists():
         assert gym_fetch(["eval", str(run), "--episodes", str(episodes), "--json", str(report)]) == 0
     return json.loads(report.read_text())
@@ -140,18 +150,35 @@ def main() -> None:
     parser.add_argument("--style", default=None,
                         help="pad demos by this stand-in operator (fetch.testing.operators) instead of expert demos")
     parser.add_argument("--seed", type=int, default=100, help="--style: the pad demos' collection seed")
+    parser.add_argument("--mission", default=None,
+                        help="a benchmarks.mission folder: start from its policy (run) and generated demos; --style "
+                             "names its stand-in, for the more pad demos")
+    parser.add_argument("--train-args", default="",
+                        help='more flags for every `gym-fetch train`, e.g. "--precision fp32"')
     parser.add_argument("--expert-finger-noise", type=float, default=None,
                         help="collect's --expert-finger-noise for the expert demos (default: collect's, = the arm's)")
     args = parser.parse_args()
+    if args.mission and not args.style:
+        parser.error("--mission needs --style: the stand-in whose more pad demos the corrections are compared with")
     root = pathlib.Path(args.dir)
     root.mkdir(parents=True, exist_ok=True)
     times: dict[str, float] = {}
     env_id = args.env
     horizon = gym.spec(env_id).max_episode_steps or 50
 
+    mission = pathlib.Path(args.mission) if args.mission else None
+    base_run = mission / "run" if mission else root / "base"
+    data = ([d for d in (mission / "generated", mission / "generated-tight") if d.exists()] if mission
+            else [root / "demos"])
+    seeing = fetch.learn.load(base_run).config if mission else None  # the cameras a mission's policy sees
+    cameras = seeing.cameras if seeing else ()
+
     def collect_demos(out: pathlib.Path, episodes: int, seed: int) -> None:
         if args.style and not out.exists():
             teleop(env_id, out, episodes, args.style, seed)
+            for camera in cameras:  # what a camera policy learns from: its own cameras, size and quality
+                assert seeing and gym_fetch(["render-obs", str(out), "--camera", camera, "--size",
+                                             str(seeing.image_size), "--quality", seeing.image_quality]) == 0
         elif not out.exists():
             noise = args.expert_finger_noise
             fingers = [] if noise is None else ["--expert-finger-noise", str(noise)]
@@ -163,12 +190,15 @@ def main() -> None:
             extra = ["--from", str(start)] if start else []
             extra += ["--correction-weight", str(args.weight)] if args.weight and start else []
             extra += ["--steps", str(args.steps)] if args.steps and start else []
+            extra += shlex.split(args.train_args)
             assert gym_fetch(["train", *map(str, data), "--out", str(out), *extra]) == 0
             (out / "trained").touch()
 
-    timed("demos", times, lambda: collect_demos(root / "demos", args.demos, args.seed if args.style else 0))
-    timed("train base", times, lambda: train(root / "base", root / "demos"))
-    base = timed("eval base", times, lambda: evaluate(root / "base", args.episodes))
+    if not mission:
+        timed("demos", times, lambda: collect_demos(root / "demos", args.demos, args.seed if args.style else 0))
+        timed("train base", times, lambda: train(root / "base", root / "demos"))
+    base_report = root / f"base-eval-{args.episodes}.json" if mission else None  # nothing written into the mission
+    base = timed("eval base", times, lambda: evaluate(base_run, args.episodes, base_report))
 
     corrected = root / ("corrected" + ("-drift" if args.drift else "") + (f"-stall{args.stall}" if args.stall != STALL
                                                                            else ""))
@@ -179,10 +209,12 @@ def main() -> None:
             return
         env = gym.make(env_id, max_episode_steps=3 * horizon)
         person = StandInCorrector(env, patience=horizon, drift=args.drift, stall=args.stall)
-        device = TakeoverDevice(PolicyDevice(env, root / "base"), person)
+        device = TakeoverDevice(PolicyDevice(env, base_run), person)
+        images = dict(cameras=seeing.cameras, image_size=seeing.image_size,
+                      image_quality=seeing.image_quality) if seeing and seeing.cameras else {}
         config = CollectConfig(env_id=env_id, out=str(corrected), episodes=args.attempts, max_steps=3 * horizon,
                                device="takeover", render="none", control_hz=0, keep_failures=True,
-                               seed=CORRECTION_SEEDS)
+                               seed=CORRECTION_SEEDS, **images)
         result = Session(config, device, env=env, log=lambda _: None).run()
         summary.update(attempts=len(result.attempts), succeeded=sum(a.success for a in result.attempts))
 
@@ -190,10 +222,10 @@ def main() -> None:
     variant = "".join(f"-{k}{v}" for k, v in (("w", args.weight), ("s", args.steps)) if v)
     fixed_run = root / f"fixed{variant}{corrected.name[len('corrected'):]}"
     plain_run = root / f"plain{'-s' + str(args.steps) if args.steps else ''}"  # the weight is for corrections
-    timed("train fixed", times, lambda: train(fixed_run, root / "demos", corrected, start=root / "base"))
+    timed("train fixed", times, lambda: train(fixed_run, *data, corrected, start=base_run))
     fixed = timed("eval fixed", times, lambda: evaluate(fixed_run, args.episodes))
     timed("plain demos", times, lambda: collect_demos(root / "more", args.attempts, PLAIN_SEEDS))
-    timed("train plain", times, lambda: train(plain_run, root / "demos", root / "more", start=root / "base"))
+    timed("train plain", times, lambda: train(plain_run, *data, root / "more", start=base_run))
     plain = timed("eval plain", times, lambda: evaluate(plain_run, args.episodes))
 
     from fetch.dataset import open_dataset
@@ -204,13 +236,15 @@ def main() -> None:
     print(machine_line("torch"))
     fingers = "" if args.expert_finger_noise is None else f" (--expert-finger-noise {args.expert_finger_noise})"
     kind = f"pad demos by the {args.style} stand-in (collection seed {args.seed})" if args.style else "expert demos"
-    print(f"{env_id}, {args.demos} {kind}{fingers}, "
+    start = f"the policy of {mission} ({', '.join(map(str, data))})" if mission else f"{args.demos} {kind}{fingers}"
+    print(f"{env_id}, {start}, "
           f"{args.attempts} attempts with the stand-in ready to take over ({takeovers} takeovers, {person} of "
           f"their {steps} steps driven by it), {args.episodes} evaluation episodes\n")
     print(f"--correction-weight {args.weight or 'default'}, --steps {args.steps or 'default'} for --from\n")
     print("| policy | success | 95 % interval |\n|---|---|---|")
     more = "pad" if args.style else "expert"
-    for name, result in ((f"base ({more} demos)", base), ("base + corrections (--from base)", fixed),
+    first = "the mission's policy" if mission else f"{more} demos"
+    for name, result in ((f"base ({first})", base), ("base + corrections (--from base)", fixed),
                          (f"base + {args.attempts} more {more} demos (--from base)", plain)):
         low, high = result["ci95"]
         print(f"| {name} | {100 * result['success_rate']:.0f} % | {100 * low:.0f}-{100 * high:.0f} % |")
