@@ -51,6 +51,7 @@ from benchmarks.mission import teleop
 from fetch.cli import main as gym_fetch
 from fetch.experts import make_expert
 from fetch.learn.device import PolicyDevice
+from fetch.learn.evaluate import EVAL_SEED_START
 from fetch.learn.takeover import TakeoverDevice
 from fetch.teleop.devices import Command
 from fetch.teleop.session import CollectConfig, Session
@@ -134,6 +135,21 @@ def evaluate(run: pathlib.Path, episodes: int, report: pathlib.Path | None = Non
     if not report.exists():
         assert gym_fetch(["eval", str(run), "--episodes", str(episodes), "--json", str(report)]) == 0
     return json.loads(report.read_text())
+
+
+def tight_starts(source: pathlib.Path, episodes: int) -> np.ndarray | None:
+    """Which of the evaluation's seeds (1,000,000 on) start the object close beside something
+    (`generate --starts tight`'s test, with `source`'s demos as the generator's); None where the task has none."""
+    from fetch.generate.attempt import Generator, Options
+    from fetch.generate.sources import load_sources
+
+    sources = load_sources(source)
+    generator = Generator(sources.env_id, sources.env_kwargs, sources.segments, Options(max_steps=100), seed=0)
+    tight = []
+    for seed in range(EVAL_SEED_START, EVAL_SEED_START + episodes):
+        generator._obs, _ = generator.env.reset(seed=seed)  # what Generator.attempt sets before its test
+        tight.append(generator.tight())
+    return np.array(tight) if any(tight) else None
 
 
 def main() -> None:
@@ -241,13 +257,18 @@ def main() -> None:
           f"{args.attempts} attempts with the stand-in ready to take over ({takeovers} takeovers, {person} of "
           f"their {steps} steps driven by it), {args.episodes} evaluation episodes\n")
     print(f"--correction-weight {args.weight or 'default'}, --steps {args.steps or 'default'} for --from\n")
-    print("| policy | success | 95 % interval |\n|---|---|---|")
+    tight = tight_starts(mission / "human" if mission else root / "demos", args.episodes)
+    columns = "" if tight is None else " tight starts: failed | other starts: failed |"
+    print(f"| policy | success | 95 % interval |{columns}\n|---|---|---|{'---|---|' if columns else ''}")
     more = "pad" if args.style else "expert"
     first = "the mission's policy" if mission else f"{more} demos"
     for name, result in ((f"base ({first})", base), ("base + corrections (--from base)", fixed),
                          (f"base + {args.attempts} more {more} demos (--from base)", plain)):
         low, high = result["ci95"]
-        print(f"| {name} | {100 * result['success_rate']:.0f} % | {100 * low:.0f}-{100 * high:.0f} % |")
+        failed = ~np.array(result["ever"])
+        split = "" if tight is None else f" {(failed & tight).sum()} of {tight.sum()} | {(failed & ~tight).sum()} of " \
+                                         f"{(~tight).sum()} |"
+        print(f"| {name} | {100 * result['success_rate']:.1f} % | {100 * low:.1f}-{100 * high:.1f} % |{split}")
     round_time = sum(times.get(k, 0.0) for k in ("collect corrections", "train fixed", "eval fixed"))
     print("\n" + ", ".join(f"{k} {v:.0f} s" for k, v in times.items()) + f"; the correction round {round_time:.0f} s")
 
