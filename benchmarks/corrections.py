@@ -47,7 +47,7 @@ import numpy as np
 
 import fetch.learn
 from benchmarks._machine import machine_line
-from benchmarks.mission import teleop
+from benchmarks.mission import teleop, training_data
 from fetch.cli import main as gym_fetch
 from fetch.experts import make_expert
 from fetch.learn.device import PolicyDevice
@@ -184,8 +184,7 @@ def main() -> None:
 
     mission = pathlib.Path(args.mission) if args.mission else None
     base_run = mission / "run" if mission else root / "base"
-    data = ([d for d in (mission / "generated", mission / "generated-tight") if d.exists()] if mission
-            else [root / "demos"])
+    data = training_data(mission) if mission else [root / "demos"]
     seeing = fetch.learn.load(base_run).config if mission else None  # the cameras a mission's policy sees
     cameras = seeing.cameras if seeing else ()
 
@@ -226,8 +225,8 @@ def main() -> None:
         env = gym.make(env_id, max_episode_steps=3 * horizon)
         person = StandInCorrector(env, patience=horizon, drift=args.drift, stall=args.stall)
         device = TakeoverDevice(PolicyDevice(env, base_run), person)
-        images = dict(cameras=seeing.cameras, image_size=seeing.image_size,
-                      image_quality=seeing.image_quality) if seeing and seeing.cameras else {}
+        images = dict(cameras=cameras, image_size=seeing.image_size,
+                      image_quality=seeing.image_quality) if seeing and cameras else {}
         config = CollectConfig(env_id=env_id, out=str(corrected), episodes=args.attempts, max_steps=3 * horizon,
                                device="takeover", render="none", control_hz=0, keep_failures=True,
                                seed=CORRECTION_SEEDS, **images)

@@ -69,6 +69,12 @@ def mission_dir(base: str | pathlib.Path, env_id: str, style: str, inputs: str =
     return root / (f"{style}-pixels{image_size}-{image_quality}" if inputs == "pixels" else style)
 
 
+def training_data(stages: pathlib.Path) -> list[pathlib.Path]:
+    """The datasets a mission's `train` learns from, in the folder `stages` (`mission_dir`): its generated demos,
+    and those from tight starts where the task has them."""
+    return [d for d in (stages / "generated", stages / "generated-tight") if d.exists()]
+
+
 TIGHT_SEED = 500_000
 """`generate --seed` of the tight starts' dataset: its attempts the same seed and number would be the other's
 (the same demo twice); below the evaluation's seeds (1,000,000 on)."""
@@ -163,7 +169,7 @@ def main() -> None:
         timing_file.write_text(json.dumps(timing))
     if "train" not in timing:
         inputs = ["--inputs", "pixels"] if args.inputs == "pixels" else []
-        data = [str(generated)] + ([str(tight)] if tight.exists() else [])
+        data = map(str, training_data(root))
         timing["train"] = gym_fetch("train", *data, "--out", str(run), *inputs, *args.train_args.split())
         timing_file.write_text(json.dumps(timing))
     if "eval" not in timing:

@@ -44,7 +44,7 @@ import time
 from typing import Any
 
 from benchmarks._machine import machine_line
-from benchmarks.mission import mission_dir
+from benchmarks.mission import mission_dir, training_data
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.learn import checkpoint
 from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES
@@ -161,7 +161,7 @@ def cell(env_id: str, inputs: str, args: argparse.Namespace) -> list[dict[str, A
 
     def export() -> str:
         merged, target = root / "merged.hdf5", root / "lerobot"
-        sources = [str(p) for p in (stages / "generated", stages / "generated-tight") if p.exists()]
+        sources = [str(p) for p in training_data(stages)]
         if len(sources) > 1:  # what `gym-fetch train` read as two datasets, one for LeRobot
             call([tool("gym-fetch"), "merge", *sources, "--out", str(merged), "--force"], log)
         cameras = [] if inputs == "pixels" else ["--cameras", "none"]
