@@ -3,6 +3,7 @@
     python -m benchmarks.corrections --env Bin-pick-v2 --dir /tmp/corr [--demos 100] [--attempts 20]
         [--style person [--seed 100]]
     python -m benchmarks.corrections --env Bin-place-v2 --style person --mission M/Bin-place-v2/person --dir /tmp/corr
+        [--starts tight]
 
 Each stage is skipped when its output is already in --dir, so an interrupted run goes on where it stopped:
 
@@ -26,6 +27,9 @@ the whole path: the base is M's policy (`M/run`, not trained again) and its trai
 which `fixed` and `plain` learn from again beside the corrections or the `--style` stand-in's more pad demos. For
 a camera policy the corrections record the cameras it sees and the more pad demos get them from `render-obs`, at
 its image size and quality.
+
+With `--starts tight` the corrected attempts and the more pad (or expert) demos start only where the object
+stands close beside something (`collect --starts tight`): where a Bin task's policy fails most.
 
 It prints each stage's time and a table. The stand-in reads the simulator's state, as the expert does; a
 person reads the window. It drives the takeover device directly, not through SDL (the pad path is what
@@ -137,19 +141,17 @@ def evaluate(run: pathlib.Path, episodes: int, report: pathlib.Path | None = Non
     return json.loads(report.read_text())
 
 
-def tight_starts(source: pathlib.Path, episodes: int) -> np.ndarray | None:
-    """Which of the evaluation's seeds (1,000,000 on) start the object close beside something
-    (`generate --starts tight`'s test, with `source`'s demos as the generator's); None where the task has none."""
-    from fetch.generate.attempt import Generator, Options
-    from fetch.generate.sources import load_sources
+def tight_starts(env_id: str, episodes: int) -> np.ndarray | None:
+    """Which of the evaluation's seeds (1,000,000 on) start the object close beside something (`collect --starts
+    tight`'s test); None where the task has none."""
+    from fetch.generate.room import resets_tight
+    from fetch.tasks.subtasks import Scene
 
-    sources = load_sources(source)
-    generator = Generator(sources.env_id, sources.env_kwargs, sources.segments, Options(max_steps=100), seed=0)
-    tight = []
-    for seed in range(EVAL_SEED_START, EVAL_SEED_START + episodes):
-        generator._obs, _ = generator.env.reset(seed=seed)  # what Generator.attempt sets before its test
-        tight.append(generator.tight())
-    return np.array(tight) if any(tight) else None
+    env = gym.make(env_id)
+    scene = Scene(env.unwrapped.model)
+    tight = np.array([resets_tight(env, seed, scene) for seed in range(EVAL_SEED_START, EVAL_SEED_START + episodes)])
+    env.close()
+    return tight if tight.any() else None
 
 
 def main() -> None:
@@ -169,6 +171,8 @@ def main() -> None:
     parser.add_argument("--mission", default=None,
                         help="a benchmarks.mission folder: start from its policy (run) and generated demos; --style "
                              "names its stand-in, for the more pad demos")
+    parser.add_argument("--starts", default="all", choices=("all", "tight"),
+                        help="the corrected attempts' and the more demos' starts (collect --starts; default all)")
     parser.add_argument("--train-args", default="",
                         help='more flags for every `gym-fetch train`, e.g. "--precision fp32"')
     parser.add_argument("--expert-finger-noise", type=float, default=None,
@@ -188,9 +192,9 @@ def main() -> None:
     seeing = fetch.learn.load(base_run).config if mission else None  # the cameras a mission's policy sees
     cameras = seeing.cameras if seeing else ()
 
-    def collect_demos(out: pathlib.Path, episodes: int, seed: int) -> None:
+    def collect_demos(out: pathlib.Path, episodes: int, seed: int, starts: str = "all") -> None:
         if args.style and not out.exists():
-            teleop(env_id, out, episodes, args.style, seed)
+            teleop(env_id, out, episodes, args.style, seed, starts)
             for camera in cameras:  # what a camera policy learns from: its own cameras, size and quality
                 assert seeing and gym_fetch(["render-obs", str(out), "--camera", camera, "--size",
                                              str(seeing.image_size), "--quality", seeing.image_quality]) == 0
@@ -198,7 +202,8 @@ def main() -> None:
             noise = args.expert_finger_noise
             fingers = [] if noise is None else ["--expert-finger-noise", str(noise)]
             assert gym_fetch(["collect", "--env", env_id, "--device", "expert", "--episodes", str(episodes),
-                              "--render", "none", "--seed", str(seed), "--out", str(out), *fingers]) == 0
+                              "--render", "none", "--seed", str(seed), "--out", str(out), "--starts", starts,
+                              *fingers]) == 0
 
     def train(out: pathlib.Path, *data: pathlib.Path, start: pathlib.Path | None = None) -> None:
         if not (out / "checkpoint.pt").exists() or not (out / "trained").exists():  # a stopped run resumes
@@ -215,8 +220,9 @@ def main() -> None:
     base_report = root / f"base-eval-{args.episodes}.json" if mission else None  # nothing written into the mission
     base = timed("eval base", times, lambda: evaluate(base_run, args.episodes, base_report))
 
+    from_tight = "-tight" if args.starts == "tight" else ""
     corrected = root / ("corrected" + ("-drift" if args.drift else "") + (f"-stall{args.stall}" if args.stall != STALL
-                                                                           else ""))
+                                                                           else "") + from_tight)
     summary: dict[str, Any] = {}
 
     def correct() -> None:
@@ -229,18 +235,19 @@ def main() -> None:
                       image_quality=seeing.image_quality) if seeing and cameras else {}
         config = CollectConfig(env_id=env_id, out=str(corrected), episodes=args.attempts, max_steps=3 * horizon,
                                device="takeover", render="none", control_hz=0, keep_failures=True,
-                               seed=CORRECTION_SEEDS, **images)
+                               seed=CORRECTION_SEEDS, starts=args.starts, **images)
         result = Session(config, device, env=env, log=lambda _: None).run()
         summary.update(attempts=len(result.attempts), succeeded=sum(a.success for a in result.attempts))
 
     timed("collect corrections", times, correct)
     variant = "".join(f"-{k}{v}" for k, v in (("w", args.weight), ("s", args.steps)) if v)
     fixed_run = root / f"fixed{variant}{corrected.name[len('corrected'):]}"
-    plain_run = root / f"plain{'-s' + str(args.steps) if args.steps else ''}"  # the weight is for corrections
+    plain_run = root / f"plain{'-s' + str(args.steps) if args.steps else ''}{from_tight}"  # weight: corrections'
+    more_demos = root / f"more{from_tight}"
     timed("train fixed", times, lambda: train(fixed_run, *data, corrected, start=base_run))
     fixed = timed("eval fixed", times, lambda: evaluate(fixed_run, args.episodes))
-    timed("plain demos", times, lambda: collect_demos(root / "more", args.attempts, PLAIN_SEEDS))
-    timed("train plain", times, lambda: train(plain_run, *data, root / "more", start=base_run))
+    timed("plain demos", times, lambda: collect_demos(more_demos, args.attempts, PLAIN_SEEDS, args.starts))
+    timed("train plain", times, lambda: train(plain_run, *data, more_demos, start=base_run))
     plain = timed("eval plain", times, lambda: evaluate(plain_run, args.episodes))
 
     from fetch.dataset import open_dataset
@@ -252,11 +259,11 @@ def main() -> None:
     fingers = "" if args.expert_finger_noise is None else f" (--expert-finger-noise {args.expert_finger_noise})"
     kind = f"pad demos by the {args.style} stand-in (collection seed {args.seed})" if args.style else "expert demos"
     start = f"the policy of {mission} ({', '.join(map(str, data))})" if mission else f"{args.demos} {kind}{fingers}"
-    print(f"{env_id}, {start}, "
-          f"{args.attempts} attempts with the stand-in ready to take over ({takeovers} takeovers, {person} of "
-          f"their {steps} steps driven by it), {args.episodes} evaluation episodes\n")
+    where = " from tight starts" if from_tight else ""
+    print(f"{env_id}, {start}, {args.attempts} attempts{where} with the stand-in ready to take over ({takeovers} "
+          f"takeovers, {person} of their {steps} steps driven by it), {args.episodes} evaluation episodes\n")
     print(f"--correction-weight {args.weight or 'default'}, --steps {args.steps or 'default'} for --from\n")
-    tight = tight_starts(mission / "human" if mission else root / "demos", args.episodes)
+    tight = tight_starts(env_id, args.episodes)
     columns = "" if tight is None else " tight starts: failed | other starts: failed |"
     print(f"| policy | success | 95 % interval |{columns}\n|---|---|---|{'---|---|' if columns else ''}")
     more = "pad" if args.style else "expert"

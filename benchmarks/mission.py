@@ -35,8 +35,10 @@ from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.rendering import DEFAULT_IMAGE_QUALITY, IMAGE_QUALITIES
 
 
-def teleop(env_id: str, out: pathlib.Path, demos: int, style: str, seed: int = 0) -> tuple[float, float]:
-    """([s] wall time, [s] what a person at 25 Hz would have spent steering)."""
+def teleop(env_id: str, out: pathlib.Path, demos: int, style: str, seed: int = 0,
+           starts: str = "all") -> tuple[float, float]:
+    """([s] wall time, [s] what a person at 25 Hz would have spent steering), the demos made from `starts`
+    (`collect --starts`)."""
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     from fetch.testing import operators, vpad
     from fetch.timing import CONTROL_DT
@@ -45,7 +47,7 @@ def teleop(env_id: str, out: pathlib.Path, demos: int, style: str, seed: int = 0
     pad = vpad.VirtualPad()
     start = time.perf_counter()
     try:
-        summary = operators.drive(pad, env_id, style, out, demos, seed)
+        summary = operators.drive(pad, env_id, style, out, demos, seed, starts)
     finally:
         pad.detach()  # unplugged, so a later session in this process finds one pad only
     steps = sum(a.steps for a in summary.attempts)

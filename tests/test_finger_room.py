@@ -4,6 +4,7 @@ fully (a finger lands on the rim) and as wide as `finger_room` says (it reaches 
 
 from __future__ import annotations
 
+import pathlib
 from typing import Any
 
 import gymnasium as gym
@@ -12,6 +13,8 @@ import numpy as np
 import pytest
 
 import fetch  # noqa: F401  (registers the envs)
+from fetch.cli import main as cli_main
+from fetch.dataset import open_dataset
 from fetch.experts.base import Expert
 from fetch.generate.attempt import Generator, Options
 from fetch.generate.room import finger_room
@@ -200,3 +203,36 @@ def test_tight_starts_are_the_only_ones_attempted_when_asked() -> None:
         finally:
             generator.close()
     assert all(made["all"]) and made["tight"] == tight and 0 < sum(tight) < len(tight), tight
+
+
+def test_collect_starts_tight_attempts_from_the_tight_seeds_in_order_and_resumes_at_the_next(
+        tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`collect --starts tight` (a correction round's way to where a policy is weakest): attempt k resets with the
+    (k+1)-th seed from --seed on whose start a generator finds tight, a resumed session goes on with the next, the
+    dataset records the choice (a session without it cannot append), and a task with no tight start is one error."""
+    out = tmp_path / "tight"
+    argv = ["collect", "--env", "Bin-place-v2", "--device", "expert", "--render", "none", "--keep-failures",
+            "--seed", "7", "--out", str(out), "--starts", "tight", "--episodes"]
+    assert cli_main([*argv, "2"]) == 0
+    assert cli_main([*argv, "1"]) == 0
+    generator = Generator("Bin-place-v2", {}, [[approach(np.array([1.3, 0.6, 0.42]))] * 3], Options(max_steps=8),
+                          seed=0)
+    try:
+        expected = []
+        for seed in range(7, 400):
+            generator._obs, _ = generator.env.reset(seed=seed)  # as Generator.attempt sets it before its test
+            if generator.tight():
+                expected.append(seed)
+    finally:
+        generator.close()
+    with open_dataset(out) as ds:
+        seeds = [int(ds.attrs(n)["seed"]) for n in ds.demo_names]
+        assert ds.settings["starts"] == "tight"
+    assert seeds == expected[:3] and seeds[-1] - 7 > 3, (seeds, expected)  # tight ones only, in order, none again
+    capsys.readouterr()
+    assert cli_main(argv[:-3] + ["--episodes", "1"]) == 2  # --starts all cannot append to it
+    assert "settings.starts" in capsys.readouterr().err
+    assert cli_main(["collect", "--env", "PickPlace-v2", "--device", "expert", "--render", "none", "--episodes", "1",
+                     "--out", str(tmp_path / "none"), "--starts", "tight"]) == 1
+    said = [line for line in capsys.readouterr().out.splitlines() if line.startswith("error:")]
+    assert len(said) == 1 and "PickPlace-v2 from seed 0 on is tight" in said[0] and "use --starts all" in said[0]

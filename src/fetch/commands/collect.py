@@ -15,6 +15,7 @@ from fetch.commands import flags
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The collector's flags: the original script's (same names and meaning) plus ours."""
     from fetch.dataset.formats import FORMATS
+    from fetch.generate.room import STARTS
     from fetch.learn import device as _  # noqa: F401  (registers --device policy, from the layer above teleop)
     from fetch.learn import takeover as _takeover  # noqa: F401  (registers --device takeover)
     from fetch.tasks import ENV_IDS
@@ -27,6 +28,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--episodes", type=int, default=0, help="demos to save in this session (default 0: until you quit)")
     flags.add_max_steps(p, flags.COLLECT)
     flags.add_seed(p)
+    p.add_argument("--starts", default="all", choices=STARTS,
+                   help="all (default): attempts from every start the env draws; tight: only from those where the "
+                        "object stands close beside something along the fingers' axis (a bin's wall), as generate "
+                        "--starts tight: attempt k then resets with the (k+1)-th such seed from --seed on. Where a "
+                        "policy is weakest, for a correction round (--device takeover)")
     p.add_argument("--control-hz", type=float, default=None,
                    help="control rate [Hz]; default 25 (real time) with a person or a window, "
                         "as fast as possible for expert/scripted without a window; 0: as fast as possible")
@@ -64,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     # main() and collect_main() hold the stop handlers (fetch.stopping) around this.
     config = CollectConfig(
         env_id=args.env, out=args.out, episodes=args.episodes, max_steps=args.max_steps, seed=args.seed,
-        control_hz=args.control_hz, success_hold_steps=args.success_hold_steps,
+        starts=args.starts, control_hz=args.control_hz, success_hold_steps=args.success_hold_steps,
         stop_on_success=args.stop_on_success, ignore_env_done=args.ignore_env_done,
         keep_failures=args.keep_failures, device=args.device, render=args.render, format=args.format,
         reward_type=args.reward_type, cameras=flags.camera_list(args.cameras), image_size=args.image_size,

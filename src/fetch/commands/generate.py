@@ -7,7 +7,7 @@ import argparse
 import pathlib
 
 from fetch.commands import flags
-from fetch.generate.attempt import STARTS
+from fetch.generate.room import STARTS
 from fetch.looks import LOOKS
 
 

@@ -19,7 +19,7 @@ from fetch.dataset.habits import SQUEEZE
 from fetch.dataset.render.frames import StateRenderer
 from fetch.errors import FetchError, UnknownNameError
 from fetch.experts.base import Expert
-from fetch.generate.room import finger_room, pass_over
+from fetch.generate.room import STARTS, finger_room, pass_over, tight_start
 from fetch.generate.segments import Segment, annotate, from_frame, held_grip, to_frame
 from fetch.rendering import DEFAULT_IMAGE_QUALITY
 from fetch.robot import ACTION_STEP, HAND_RESPONSE, dart_std
@@ -29,11 +29,6 @@ from fetch.tasks.subtasks import Frame, Grasped, Lifted, Scene
 SELECTIONS = ("nearest", "random")
 """How a source segment is chosen for each subtask: among the `nearest_k` whose hand started
 closest to where the hand is now (in the subtask's frame), or uniformly."""
-STARTS = ("all", "tight")
-"""Which of the env's starts attempts are made from: every one, or only those where the first object stands so
-close beside something along the fingers' axis that fully open fingers would come down on it (`Generator.tight`)."""
-WIDEST = 0.05
-"""[m] a finger's opening fully open (its travel): how wide a pad's X opens it."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -275,14 +270,8 @@ class Generator:
         return float(self._obs["observation"][self.base.observation_layout["gripper_state"]].mean())
 
     def tight(self) -> bool:
-        """Whether the first subtask's object, as the env has just reset it, stands so close beside something
-        along the fingers' axis that fully open fingers coming down over its centre would land on it."""
-        body = self._loose_body[0]
-        if body < 0:
-            return False
-        frame = self.subtasks[0].frame(self.scene, self.base.data)
-        return finger_room(self.base.model, self.base.data, self.scene.fingers, body, frame.pos, frame.pos,
-                           self._opening(), WIDEST) is not None
+        """Whether the env, as it has just been reset, starts tight (`room.tight_start`)."""
+        return tight_start(self.base, self.scene, self._opening())
 
     def attempt(self, number: int) -> Result:
         """Attempt `number`: reset with seed + number, execute one segment per subtask. Where a grasp was

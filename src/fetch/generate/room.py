@@ -12,9 +12,20 @@ place may be, either way, without a finger landing on the object's top or on the
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 
+from fetch.tasks.subtasks import Scene
+
+STARTS = ("all", "tight")
+"""Which of the env's starts attempts are made from (`generate --starts`, `collect --starts`): every one, or only
+the tight ones (`tight_start`)."""
+NO_TIGHT_START = 2000
+"""With `--starts tight`: skipped starts before the first tight one after which the task is taken to have none."""
+WIDEST = 0.05
+"""[m] a finger's opening fully open (its travel): how wide a pad's X opens it."""
 RAY_STEP = 0.01
 """[m] the height between two rays, from just above the object's bottom to above its top."""
 ABOVE = 0.02
@@ -100,6 +111,28 @@ def finger_room(model: mujoco.MjModel, data: mujoco.MjData, fingers: tuple[int, 
     if not np.isfinite(room) or room < clear:
         return None  # nothing near, or the hand comes down so far off-centre that a finger would land on the object
     return float(room)
+
+
+def tight_start(env: Any, scene: Scene, opening: float) -> bool:
+    """Whether the object of the task's first subtask, as the env (a `FetchEnv`, just reset) has placed it, stands
+    so close beside something along the fingers' axis that fully open fingers (`WIDEST`) coming down over its
+    centre would land on it: a start where a pad's full opening fails. `opening` [m] is the fingers' opening now
+    (the observation's `gripper_state`, averaged); `scene` is `Scene(env.model)`. False where the first subtask
+    approaches no loose object (a drawer's handle, a goal in the air)."""
+    first = type(env.task).subtasks[0]
+    if first.done is None or scene.loose(first.reference) is None:
+        return False
+    body = int(env.model.site_bodyid[scene.site(first.reference)])
+    centre = first.frame(scene, env.data).pos
+    return finger_room(env.model, env.data, scene.fingers, body, centre, centre, opening, WIDEST) is not None
+
+
+def resets_tight(env: Any, seed: int, scene: Scene) -> bool:
+    """Reset `env` (a gymnasium env of a `FetchEnv`) with `seed`: whether that start is tight (`tight_start`);
+    `scene` is `Scene(env.unwrapped.model)`."""
+    obs, _ = env.reset(seed=seed)
+    base = env.unwrapped
+    return tight_start(base, scene, float(np.mean(obs["observation"][base.observation_layout["gripper_state"]])))
 
 
 FINGERTIPS = 0.02

@@ -26,6 +26,7 @@ from fetch.dataset.formats import open_writer
 from fetch.dataset.reader import open_dataset
 from fetch.errors import FetchError
 from fetch.generate.attempt import Options, Result, task_hand_response
+from fetch.generate.room import NO_TIGHT_START
 from fetch.generate.sources import Sources, load_sources
 from fetch.generate.workers import Backend, Pool, RayCluster, Serial, Work, default_workers
 from fetch.looks import check_looks
@@ -34,8 +35,6 @@ from fetch.rendering import DEFAULT_IMAGE_QUALITY, check_camera_list, check_imag
 MAX_SEED = 2**62
 LOW_YIELD = (200, 0.05)
 """After this many attempts, a success rate below this fraction is worth a word (Slide's strikes: 1.7 %)."""
-NO_TIGHT_START = 2000
-"""With `--starts tight`: skipped starts before the first tight one after which the task is taken to have none."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -14,6 +14,7 @@ from typing import Any, cast
 from fetch.camera_obs import DEFAULT_IMAGE_SIZE
 from fetch.dataset.formats import check_format
 from fetch.errors import FetchError, UnknownNameError
+from fetch.generate.room import STARTS
 from fetch.rendering import DEFAULT_IMAGE_QUALITY, check_camera_list, check_image_quality, check_image_size
 from fetch.tasks import ENV_IDS, MAX_STEPS, registered_horizon
 from fetch.teleop.registry import device_kind
@@ -41,7 +42,12 @@ class CollectConfig:
     max_steps: int | None = None
     """Steps per attempt; replaces the env's 50-step TimeLimit. None: decided (`decided`)."""
     seed: int = 0
-    """Attempt k of the dataset resets with seed + k."""
+    """Attempt k of the dataset resets with seed + k (with `starts` "tight": the (k+1)-th seed from `seed` on
+    whose start is tight)."""
+    starts: str = "all"
+    """`STARTS`: "tight" makes attempts only from the starts where the object stands close beside something along
+    the fingers' axis (a bin's wall: `fetch.generate.room.tight_start`), as `generate --starts tight` does: where a
+    policy trained from ordinary starts is weakest, which a correction round should visit."""
     control_hz: float | None = None
     """[Hz] None: the env's real-time rate (25) for a person, as fast as possible for expert/scripted."""
     success_hold_steps: int = 10
@@ -70,6 +76,8 @@ class CollectConfig:
         object.__setattr__(self, "stop_on_success", stop)
         object.__setattr__(self, "max_steps", max_steps)
         check_format(self.format, self.cameras)
+        if self.starts not in STARTS:
+            raise UnknownNameError("starts", self.starts, STARTS)
         if self.render not in RENDER_CHOICES:
             raise UnknownNameError("render mode", self.render, RENDER_CHOICES)
         for name, value, low in (("--episodes", self.episodes, 0), ("--max-steps", max_steps, 1),
@@ -106,8 +114,9 @@ class CollectConfig:
 
     def settings(self) -> dict[str, Any]:
         """What a resumed session must match."""
-        return {"max_steps": self.max_steps, "success_hold_steps": self.success_hold_steps,
-                "stop_on_success": self.stop_on_success, "ignore_env_done": self.ignore_env_done}
+        settings = {"max_steps": self.max_steps, "success_hold_steps": self.success_hold_steps,
+                    "stop_on_success": self.stop_on_success, "ignore_env_done": self.ignore_env_done}
+        return settings | ({"starts": self.starts} if self.starts != "all" else {})  # datasets before it match
 
 
 def decided(env_id: str, device: str, out: str, stop_on_success: bool | None,

@@ -16,8 +16,10 @@ from fetch.dataset.background import MAX_QUEUED
 from fetch.dataset.episode import Demo, EpisodeBuffer
 from fetch.dataset.formats import open_writer, recorded_layout
 from fetch.errors import FetchError
+from fetch.generate.room import NO_TIGHT_START, resets_tight
 from fetch.rendering import check_camera
 from fetch.stopping import Stopped, acting_on_stop, polled, raise_if_stopped, signals_held
+from fetch.tasks.subtasks import Scene
 from fetch.teleop.config import CollectConfig
 from fetch.teleop.devices import Command, Device
 from fetch.teleop.registry import device_kind
@@ -147,6 +149,7 @@ class Session:
                                     capacity=min(config.attempt_steps, 1024))
         self.clock = Clock(config.rate(self.base.dt))
         self.attempts: list[Attempt] = []
+        self._tight_seeds: list[int] = []  # with --starts tight: the seeds from config.seed on that start tight
         self._gripper_closed = False
         self.ticks: list[tuple[float, float, float]] = []
         """Per step: its deadline, when the device was polled, when the step returned [s, perf_counter]."""
@@ -192,11 +195,30 @@ class Session:
             if attempt.ended_by == "quit":
                 break
 
+    def seed_of(self, number: int) -> int:
+        """The reset seed of the dataset's attempt `number`: seed + number, or with `starts` "tight" the
+        (number+1)-th seed from seed on whose start is tight (the same in a resumed session: found again by
+        resetting the env, a few milliseconds each); a `FetchError` where `NO_TIGHT_START` seeds in a row are not."""
+        cfg = self.config
+        if cfg.starts == "all":
+            return cfg.seed + number
+        scene = Scene(self.base.model)
+        while len(self._tight_seeds) <= number:
+            first = self._tight_seeds[-1] + 1 if self._tight_seeds else cfg.seed
+            for seed in range(first, first + NO_TIGHT_START):
+                if resets_tight(self.env, seed, scene):
+                    self._tight_seeds.append(seed)
+                    break
+            else:
+                raise FetchError(f"none of the {NO_TIGHT_START} starts of {cfg.env_id} from seed {first} on is tight "
+                                 f"(its object close beside something); use --starts all")
+        return self._tight_seeds[number]
+
     def attempt(self) -> Attempt:
         """One episode from one reset, recorded; saved if it held success (or --keep-failures)."""
         cfg, env, buf = self.config, self.env, self.buffer
         number = self.writer.reserve_attempt()
-        seed = cfg.seed + number
+        seed = self.seed_of(number)
         obs, info = env.reset(seed=seed)
         self.device.reset()
         buf.begin(obs, self.base.get_state())

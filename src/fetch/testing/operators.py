@@ -321,16 +321,17 @@ class Operator:
         self.device.close()
 
 
-def drive(pad: Any, env_id: str, style: str, out: Any, demos: int, seed: int = 0) -> SessionSummary:
+def drive(pad: Any, env_id: str, style: str, out: Any, demos: int, seed: int = 0,
+          starts: str = "all") -> SessionSummary:
     """A collection session of `demos` demos of `env_id` by a stand-in of `style` (a name in `STYLES`), through
-    the virtual pad `pad`, the real `GamepadDevice` and the real collector, into the dataset `out`: its summary,
-    however many it saved."""
+    the virtual pad `pad`, the real `GamepadDevice` and the real collector, into the dataset `out` (from `starts`,
+    as `collect --starts`): its summary, however many it saved."""
     from fetch.experts import make_expert
     from fetch.teleop.gamepad import GamepadDevice
     from fetch.teleop.session import CollectConfig, Session, make_env
 
     config = CollectConfig(env_id=env_id, out=str(out), episodes=demos, device="gamepad", render="none",
-                           control_hz=0, max_steps=400, seed=seed)
+                           control_hz=0, max_steps=400, seed=seed, starts=starts)
     env = make_env(config)
     operator = Operator(pad, GamepadDevice(), make_expert(env), STYLES[style], seed=seed)
     return Session(config, operator, env=env, log=lambda _: None).run()
