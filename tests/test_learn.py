@@ -168,6 +168,48 @@ def test_a_chunked_policy_weighs_its_chunks_by_age_as_its_decay_says(torch, deca
     assert (acted[0, 0] > 200) == (decay < 0)  # the newest chunks carry it, or all alike
 
 
+@pytest.mark.parametrize("act_steps", [2, 3])
+def test_a_chunked_policy_predicts_every_act_steps_and_acts_on_the_chunks_covering_the_step(
+        torch, act_steps: int) -> None:  # noqa: ANN001
+    """`act_steps`: the model is asked every `act_steps` steps only, and each step acts on what the chunks still
+    covering it predicted for it, weighed by age: a chunk made at step s (guessing 100 s + j for step s + j)
+    is acted on until step s + chunk - 1, then dropped."""
+    from fetch.learn.kinds import PolicyConfig
+    from fetch.learn.policies import ChunkActor
+
+    decay, chunk = -1.0, 4
+    config = PolicyConfig(kind="mlp-chunk", chunk=chunk, ensemble_decay=decay, act_steps=act_steps, obs_size=1)
+    asked: list[int] = []
+
+    def model(x):  # noqa: ANN001, ANN202
+        asked.append(int(x[0, 0]))
+        return torch.arange(4, dtype=torch.float32).reshape(1, 4, 1).repeat(1, 1, 4) + 100 * float(x[0, 0])
+
+    actor = ChunkActor(config, model)
+    for step in range(9):
+        acted = actor(torch.full((1, 1), float(step)))
+        made = [s for s in range(0, step + 1, act_steps) if step - s < chunk]  # oldest first
+        weights = np.exp(-decay * np.arange(len(made)))
+        guesses = np.array([100.0 * s + step - s for s in made])
+        np.testing.assert_allclose(acted[0], np.full(4, weights @ guesses / weights.sum()), rtol=1e-6)
+    assert asked == list(range(0, 9, act_steps))
+    actor.reset()
+    actor(torch.full((1, 1), 50.0))
+    assert asked[-1] == 50  # a new episode predicts at once
+
+
+def test_act_steps_beyond_the_chunk_is_refused_and_old_runs_predict_every_step() -> None:
+    """A step no chunk covers cannot be acted on: `act_steps` above `chunk` (or not a whole number >= 1) is one
+    error naming it; a checkpoint saved before `act_steps` existed acts as it did, predicting every step."""
+    from fetch.errors import FetchError
+    from fetch.learn.kinds import PolicyConfig
+
+    for bad in (5, 0, 1.5, True):
+        with pytest.raises(FetchError, match="act_steps"):
+            PolicyConfig(kind="mlp-chunk", chunk=4, act_steps=bad, obs_size=1)
+    assert PolicyConfig.from_dict({"kind": "mlp-chunk", "obs_size": 3}).act_steps == 1
+
+
 def test_the_chunks_disagreement_is_how_unsure_the_policy_is(torch) -> None:  # noqa: ANN001
     """`ChunkActor.spread`: none at an episode's first step (one chunk covers it), then the standard deviation
     of the chunks' guesses for the step over the hand's entries (the fingers' left out), whatever the decay."""

@@ -48,17 +48,23 @@ images place it to 1-3 cm; averaged in alike, those guesses brought the hand dow
 unseen seeds, Bin-place from the `person` stand-in's demos 87.3 -> 92.3 %, from `standin`'s 94.7 -> 95.7 %
 (docs/training.md, "Why these defaults")."""
 
+PIXEL_ACT_STEPS = 2
+"""cnn-chunk's `act_steps`: a chunk every other step. Predicting every step and acting mostly on the newest, a
+policy whose demos paused after the grasp procrastinated at the still scene (each new chunk: "wait two steps, then
+lift"); every other step the older chunk's lift carries the hand on (Bin-place from the `regrasp` stand-in's demos
+80 -> 95 %; every fourth step loses precision; docs/training.md, "Why these defaults")."""
+
 KINDS: tuple[PolicyKind, ...] = (
     PolicyKind("gru", "a recurrent policy (BC-RNN): reads a window of observations, one action per step",
                own=("seq_len",), defaults={"hidden": 128, "layers": 1},  # a GRU of 256 trains 4x slower on a CPU
                implementation="fetch.learn.policies:RECURRENT"),
     PolicyKind("mlp-chunk", "an MLP predicting chunks of actions with ACT's temporal ensembling, ~7x faster to "
-               "train", own=("chunk", "ensemble_decay"), defaults={},
+               "train", own=("chunk", "ensemble_decay", "act_steps"), defaults={},
                implementation="fetch.learn.policies:CHUNKED"),
     PolicyKind("cnn-chunk", "sees camera images (a small convolutional encoder per camera, trained from scratch on "
                "randomly shifted images), the robot's own readings and the goal, not the objects' state; predicts "
-               "chunks of actions as mlp-chunk", own=("chunk", "ensemble_decay", "cameras"),
-               defaults={"ensemble_decay": PIXEL_ENSEMBLE_DECAY},
+               "chunks of actions as mlp-chunk", own=("chunk", "ensemble_decay", "act_steps", "cameras"),
+               defaults={"ensemble_decay": PIXEL_ENSEMBLE_DECAY, "act_steps": PIXEL_ACT_STEPS},
                implementation="fetch.learn.pixels:PIXEL_CHUNK", inputs="pixels",
                # convolutions over images: a quarter of the batch, and every core (docs/training.md)
                training={"steps": 6000, "batch_size": 64, "threads": 0, "precision": "auto"}),
@@ -149,6 +155,9 @@ class PolicySettings:
     ensemble_decay: float = 0.01
     """mlp-chunk: ACT's temporal-ensembling weight exp(-decay * i), i = 0 for the oldest prediction; below 0
     the newer predictions weigh more (`PIXEL_ENSEMBLE_DECAY`)."""
+    act_steps: int = 1
+    """chunk kinds: a chunk is predicted every this many steps (at most `chunk`), each step acting on what the
+    chunks covering it predicted (1: every step, as ACT; `PIXEL_ACT_STEPS`)."""
     seq_len: int = 10
     """gru: training window [steps]; acting, the hidden state restarts every `seq_len` steps as in training."""
     loss: str = "l1"
@@ -196,6 +205,7 @@ class PolicySettings:
             raise FetchError(f"finger_scale must be at least 0 and below 1, got {reprlib.repr(self.finger_scale)}")
         if not _number(self.finger_span) or not 0.0 < self.finger_span <= 1.0:
             raise FetchError(f"finger_span must be above 0 and at most 1, got {reprlib.repr(self.finger_span)}")
+        _whole("act_steps", self.act_steps, 1, self.chunk)
         if not _number(self.ensemble_decay) or abs(self.ensemble_decay) > MAX_ENSEMBLE_DECAY:
             raise FetchError(f"ensemble_decay must be a number from {-MAX_ENSEMBLE_DECAY:.2f} to "
                              f"{MAX_ENSEMBLE_DECAY:.2f}, got {reprlib.repr(self.ensemble_decay)}")
@@ -203,7 +213,11 @@ class PolicySettings:
     @classmethod
     def of(cls, kind_name: str, **settings: Any) -> PolicySettings:
         """A policy of `kind_name` with its kind's defaults, then `settings`."""
-        return cls(kind=kind_name, **{**kind(kind_name).defaults, **settings})
+        chosen = {**kind(kind_name).defaults, **settings}
+        chunk = chosen.get("chunk", cls.chunk)
+        if "act_steps" not in settings and isinstance(chunk, int) and chunk >= 1:  # a shorter chunk than the default
+            chosen["act_steps"] = min(chosen.get("act_steps", cls.act_steps), chunk)  # covers fewer steps
+        return cls(kind=kind_name, **chosen)
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -238,8 +252,9 @@ class PolicyConfig(PolicySettings):
     def upgraded(raw: Mapping[str, Any]) -> dict[str, Any]:
         """A checkpoint's policy settings as they are now: a pixel policy saved before the image quality was
         recorded learnt from "full" images (the only kind there was), a policy saved before
-        `finger_scale` learnt the fingers' action as recorded, and one saved before `finger_span` spanned 1."""
-        raw = {"finger_scale": 0.0, "finger_span": 1.0, **raw}
+        `finger_scale` learnt the fingers' action as recorded, one saved before `finger_span` spanned 1, and one
+        saved before `act_steps` predicted every step."""
+        raw = {"finger_scale": 0.0, "finger_span": 1.0, "act_steps": 1, **raw}
         if "image_quality" in raw:
             return raw
         return {**raw, "image_quality": "full" if raw.get("cameras") else ""}

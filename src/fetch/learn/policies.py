@@ -186,8 +186,8 @@ class Actor(Protocol):
 
 
 class ChunkActor:
-    """Predicts a chunk of actions at every step and acts on the weighted mean of every chunk's prediction
-    for this step (ACT's temporal ensembling)."""
+    """Predicts a chunk of actions every `act_steps` steps and acts at each step on the weighted mean of what
+    every chunk still covering it predicted for it (ACT's temporal ensembling; ACT predicts every step)."""
 
     def __init__(self, config: PolicyConfig, model: nn.Module) -> None:
         self.config, self.model = config, model
@@ -195,16 +195,22 @@ class ChunkActor:
 
     def reset(self) -> None:
         self._chunks: list[np.ndarray] = []  # newest last, each (B, chunk, 4)
+        self._made: list[int] = []  # the step each was predicted at
+        self._t = 0
         self.spread: np.ndarray | None = None
         """the chunks' disagreement over this step (`Actor.spread`): None until two chunks cover it."""
 
     def __call__(self, x: torch.Tensor, *images: torch.Tensor) -> np.ndarray:
-        prediction = member_mean(self.config, self.model(x, *images)).numpy()
-        self._chunks = (self._chunks + [prediction])[-self.config.chunk:]
+        t, chunk = self._t, self.config.chunk
+        if t % self.config.act_steps == 0:
+            self._chunks.append(member_mean(self.config, self.model(x, *images)).numpy())
+            self._made.append(t)
+        while t - self._made[0] >= chunk:  # it no longer covers this step
+            del self._chunks[0], self._made[0]
+        self._t += 1
         # The chunk made j steps ago predicted this step as its element j; the oldest weighs most.
-        ages = range(len(self._chunks) - 1, -1, -1)
         weights = np.exp(-self.config.ensemble_decay * np.arange(len(self._chunks)))
-        predictions = np.stack([c[:, j] for c, j in zip(self._chunks, ages, strict=True)])
+        predictions = np.stack([c[:, t - made] for c, made in zip(self._chunks, self._made, strict=True)])
         self.spread = hand_spread(predictions) if len(predictions) > 1 else None
         return np.tensordot(weights / weights.sum(), predictions, axes=1)
 
