@@ -143,6 +143,39 @@ def test_temporal_ensembling_averages_every_chunk_prediction_for_this_step(torch
         np.testing.assert_allclose(acted[t], np.clip(acted_actions(expected, *fingers), -1, 1), atol=1e-5)
 
 
+def test_eval_act_steps_judges_a_chunk_run_acting_as_asked_and_refuses_what_cannot_be(
+        torch, reach: pathlib.Path, tmp_path, capsys) -> None:  # noqa: ANN001
+    """`eval --act-steps N` (`Policy.act_every`): a chunk run is evaluated asking its model every N steps, recorded in
+    the JSON; beyond its chunk, or for a policy of one action a step, one line naming the choices."""
+    from fetch.cli import main
+    from fetch.learn.runtime import load
+
+    assert _train(reach, tmp_path / "chunk", "--policy", "mlp-chunk", "--steps", "20", "--chunk", "3") == 0
+    policy = load(tmp_path / "chunk")
+    assert policy.config.act_steps == 1
+    asked = []
+    policy.model.register_forward_hook(lambda *_: asked.append(1))
+    policy.act_every(3)
+    env = gym.make("Reach-v2")
+    obs, _ = env.reset(seed=5)
+    for _ in range(7):
+        obs, *_ = env.step(policy(obs))
+    env.close()
+    assert len(asked) == 3  # steps 0, 3 and 6
+    report = tmp_path / "eval.json"
+    assert main(["eval", str(tmp_path / "chunk"), "--episodes", "2", "--act-steps", "2", "--json", str(report)]) == 0
+    assert json.loads(report.read_text())["act_steps"] == 2
+    capsys.readouterr()
+    assert main(["eval", str(tmp_path / "chunk"), "--episodes", "2", "--act-steps", "4"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "act_steps must be at most 3" in err and len(err.splitlines()) == 1
+    assert _train(reach, tmp_path / "gru", "--policy", "gru", "--steps", "5") == 0
+    capsys.readouterr()
+    assert main(["eval", str(tmp_path / "gru"), "--episodes", "2", "--act-steps", "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "act_steps is for the chunk kinds (mlp-chunk, cnn-chunk)" in err and len(err.splitlines()) == 1
+
+
 @pytest.mark.parametrize("decay", [0.01, -1.0])
 def test_a_chunked_policy_weighs_its_chunks_by_age_as_its_decay_says(torch, decay: float) -> None:  # noqa: ANN001
     """A scripted model whose chunk made at step s predicts 100 s + j for step s + j: acted on at step 3, the

@@ -25,6 +25,9 @@ def add_eval_arguments(p: argparse.ArgumentParser) -> None:
                    help="the scene's looks in the episodes' images: plain (as modelled) or random (colours, lights "
                         "and camera mounts drawn per episode from its seed, so unseen ones; docs/rendering.md); "
                         "default: those of the policy's training data")
+    p.add_argument("--act-steps", type=int, default=None, metavar="N",
+                   help="a chunk policy predicts a chunk every N steps (1 to its chunk); default: as its run says "
+                        "(cnn-chunk: 2; runs saved before that default: 1). To judge an older run as a new one acts")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
 
     evaluate_run(EvalRequest(run_dir=args.run_dir, episodes=args.episodes, envs=args.envs, seed_start=args.seed_start,
                              video=args.video, videos=args.videos, camera=args.camera, json=args.json,
-                             looks=args.looks))
+                             looks=args.looks, act_steps=args.act_steps))
     return 0
 
 

@@ -73,6 +73,8 @@ class EvalRequest:
     """a file for the per-episode results as JSON (None: none)."""
     looks: str | None = None
     """the scene's looks (`fetch.looks.LOOKS`; None: those of the policy's training data)."""
+    act_steps: int | None = None
+    """a chunk policy predicts every this many steps (`Policy.act_every`; None: as its run says)."""
 
 
 def evaluate_run(request: EvalRequest, say: Callable[[str], object] = print) -> None:
@@ -92,6 +94,8 @@ def evaluate_run(request: EvalRequest, say: Callable[[str], object] = print) -> 
 
         require_pyav()  # before the episodes, not after them
     policy = load(request.run_dir)
+    if request.act_steps is not None:
+        policy.act_every(request.act_steps)
     if request.looks is not None:
         policy.env_kwargs = {**policy.env_kwargs, "looks": request.looks}
     if request.video is not None:
@@ -101,7 +105,8 @@ def evaluate_run(request: EvalRequest, say: Callable[[str], object] = print) -> 
     result = evaluate(policy, request.episodes, envs=request.envs, seed_start=seed_start)
     say(result.describe())
     if request.json is not None:
-        pathlib.Path(request.json).write_text(json.dumps(result.as_dict(), indent=1))
+        acting = {} if request.act_steps is None else {"act_steps": request.act_steps}  # not the run's own
+        pathlib.Path(request.json).write_text(json.dumps(result.as_dict() | acting, indent=1))
     if request.video is not None:
         written = record_videos(policy, list(result.seeds[:request.videos]), request.video, camera=request.camera)
         say(f"videos: {', '.join(str(p) for p in written)}")

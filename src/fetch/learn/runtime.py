@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from collections.abc import Mapping
@@ -15,7 +16,7 @@ from fetch.errors import FetchError
 from fetch.learn import checkpoint as ckpt
 from fetch.learn.checked import load_weights, one_line
 from fetch.learn.data import Normalizer, acted_actions, flat_obs
-from fetch.learn.kinds import PolicyConfig
+from fetch.learn.kinds import KINDS, PolicyConfig, kind
 from fetch.learn.policies import build, implementation
 from fetch.tasks import registered_horizon
 
@@ -43,6 +44,16 @@ class Policy:
         self._actor = implementation(config.kind).actor(config, self.model)
         self.image_keys = tuple(image_key(c) for c in config.cameras)
         """The observation keys of the camera images it sees (none: a state policy)."""
+        self.reset()
+
+    def act_every(self, steps: int) -> None:
+        """From now on predict a chunk every `steps` steps (a chunk kind's `act_steps`, 1 to its `chunk`): to act,
+        and judge, a run saved before the default changed as one trained now would. New episodes start."""
+        if "act_steps" not in kind(self.config.kind).own:
+            raise FetchError(f"a {self.config.kind} policy predicts one action a step; act_steps is for the chunk "
+                             f"kinds ({', '.join(k.name for k in KINDS if 'act_steps' in k.own)})")
+        self.config = dataclasses.replace(self.config, act_steps=steps)  # checked as a checkpoint's would be
+        self._actor = implementation(self.config.kind).actor(self.config, self.model)
         self.reset()
 
     @property
