@@ -322,7 +322,7 @@ def test_an_ensemble_trains_its_members_apart_and_acts_on_their_mean(torch, reac
 
 
 @pytest.mark.parametrize(("setting", "before"), [("members", 1), ("goal_offsets", False), ("finger_scale", 0.0),
-                                                   ("finger_span", 1.0)])
+                                                   ("finger_span", 1.0), ("act_steps", 1)])
 def test_a_checkpoint_from_before_a_setting_existed_loads_as_it_was(torch, reach: pathlib.Path, tmp_path,  # noqa: ANN001
                                                                    setting: str, before: object) -> None:
     """Runs trained before ensembles, goal offsets or the fingers' companded action existed store no such
@@ -340,6 +340,27 @@ def test_a_checkpoint_from_before_a_setting_existed_loads_as_it_was(torch, reach
     policy.reset()
     assert policy(env.reset(seed=0)[0]).shape == (4,)
     env.close()
+
+
+def test_a_run_saved_with_other_acting_resumes_and_acts_as_a_new_one(torch, reach: pathlib.Path,
+                                                                     tmp_path) -> None:  # noqa: ANN001
+    """`act_steps` changes how the network acts, not what it learns (`checkpoint.ACTING_ONLY`): a run interrupted
+    before its default changed (saved without it, or with another) resumes, and goes on as a new run acts; a
+    setting that shapes learning still refuses (`test_resuming_with_other_settings_is_refused`)."""
+    args = ("--policy", "mlp-chunk", "--chunk", "3")
+    assert _train(reach, tmp_path / "run", *args, "--steps", "20") == 0
+    path = tmp_path / "run" / "checkpoint.pt"
+    for saved in (3, None):
+        state = torch.load(path, weights_only=True)
+        if saved is None:
+            del state["policy"]["act_steps"]
+        else:
+            state["policy"]["act_steps"] = saved
+        state["step"] = 10  # as if stopped halfway
+        torch.save(state, path)
+        assert _train(reach, tmp_path / "run", *args, "--steps", "20") == 0
+        resumed = torch.load(path, weights_only=True)
+        assert resumed["step"] == 20 and resumed["policy"]["act_steps"] == 1
 
 
 @pytest.mark.parametrize("kind", ["mlp-chunk", "gru"])

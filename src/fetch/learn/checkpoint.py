@@ -125,11 +125,19 @@ def require_outside(run: pathlib.Path, dataset: pathlib.Path) -> None:
                          "folder outside it, e.g. --out runs/NAME")
 
 
+ACTING_ONLY = ("act_steps",)
+"""Policy settings that change how the trained network acts, not what it learns: a run interrupted before their
+default changed resumes (and acts as a new run does)."""
+
+
 def require_same(run: pathlib.Path, previous: dict[str, Any], policy: dict[str, Any], train: dict[str, Any],
                  source: dict[str, Any]) -> None:
-    """A resumed run must be the same run: same policy, training settings and data."""
-    for what, old, new in (("policy", previous["policy"], policy), ("training", previous["train"], train),
-                           ("data", previous["source"], source)):
+    """A resumed run must be the same run: same policy (but for `ACTING_ONLY`), training settings and data."""
+    learnt: list[dict[str, Any]] = [{k: v for k, v in d.items() if k not in ACTING_ONLY}
+                                     for d in (previous["policy"], policy)]
+    compared: tuple[tuple[str, dict[str, Any], dict[str, Any]], ...] = (
+        ("policy", learnt[0], learnt[1]), ("training", previous["train"], train), ("data", previous["source"], source))
+    for what, old, new in compared:
         if plain(old) != plain(new):
             changed = sorted(k for k in set(old) | set(new) if plain(old.get(k)) != plain(new.get(k)))
             raise FetchError(f"{run} holds a run with other {what} settings ({', '.join(changed)} differ); "
