@@ -133,11 +133,11 @@ default changed resumes (and acts as a new run does)."""
 def require_same(run: pathlib.Path, previous: dict[str, Any], policy: dict[str, Any], train: dict[str, Any],
                  source: dict[str, Any]) -> None:
     """A resumed run must be the same run: same policy (but for `ACTING_ONLY`), training settings and data."""
-    learnt: list[dict[str, Any]] = [{k: v for k, v in d.items() if k not in ACTING_ONLY}
-                                     for d in (previous["policy"], policy)]
-    compared: tuple[tuple[str, dict[str, Any], dict[str, Any]], ...] = (
-        ("policy", learnt[0], learnt[1]), ("training", previous["train"], train), ("data", previous["source"], source))
-    for what, old, new in compared:
+    def learnt(settings: dict[str, Any]) -> dict[str, Any]:
+        return {k: v for k, v in settings.items() if k not in ACTING_ONLY}
+
+    for what, old, new in (("policy", learnt(previous["policy"]), learnt(policy)),
+                           ("training", previous["train"], train), ("data", previous["source"], source)):
         if plain(old) != plain(new):
             changed = sorted(k for k in set(old) | set(new) if plain(old.get(k)) != plain(new.get(k)))
             raise FetchError(f"{run} holds a run with other {what} settings ({', '.join(changed)} differ); "
