@@ -98,7 +98,13 @@ def session_from_request(request: CollectRequest) -> Session:
         raise
     print(f"collecting {config.env_id} with {config.device} into {config.out} "
           f"({'until you quit' if not config.episodes else f'{config.episodes} demos'})", file=sys.stderr)
-    return Session(config, device, env=env, display=viewer)
+    try:
+        return Session(config, device, env=env, display=viewer)
+    except BaseException:  # refused (a task with no tight start): what was opened for it is closed
+        device.close()
+        if viewer is not None:
+            viewer.close()
+        raise
 
 
 def collect(request: CollectRequest) -> int:

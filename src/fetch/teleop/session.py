@@ -134,6 +134,9 @@ class Session:
         self.log = log or say
         for camera in config.cameras:
             check_camera(self.base.model, camera)
+        self._tight_seeds: list[int] = []  # with --starts tight: the seeds from config.seed on that start tight
+        if config.starts == "tight":
+            self.seed_of(0)  # a task with no tight start is refused before its dataset folder is made
         self.committed = 0
         """demos handed to the writer this session (what the episode count is judged by)"""
         self.saved_this_session = 0
@@ -149,7 +152,6 @@ class Session:
                                     capacity=min(config.attempt_steps, 1024))
         self.clock = Clock(config.rate(self.base.dt))
         self.attempts: list[Attempt] = []
-        self._tight_seeds: list[int] = []  # with --starts tight: the seeds from config.seed on that start tight
         self._gripper_closed = False
         self.ticks: list[tuple[float, float, float]] = []
         """Per step: its deadline, when the device was polled, when the step returned [s, perf_counter]."""
