@@ -11,8 +11,8 @@ one venv, so the trainers share its torch. For each task and input:
 
 1. `benchmarks.mission` (the person stand-in's ten pad demos, `generate` to 1000, `gym-fetch train` with its
    defaults, `gym-fetch eval` on 100 unseen seeds): its training wall time is the budget;
-2. the same 1000 generated demos (`gym-fetch merge`, then `gym-fetch export --to lerobot`, the cameras and
-   image size the camera policy learnt from);
+2. the same 1000 generated demos (`gym-fetch merge`, then `gym-fetch export --to lerobot`, the cameras, image
+   size and image quality the camera policy learnt from);
 3. per LeRobot policy: a short probe of its training step's time, then `lerobot-train` for as many steps as
    fit in 1x and 4x the budget (`--budgets`), each a run of its own (Diffusion Policy's learning rate follows
    its schedule over the run's steps);
@@ -164,7 +164,8 @@ def cell(env_id: str, inputs: str, args: argparse.Namespace) -> list[dict[str, A
         sources = [str(p) for p in training_data(stages)]
         if len(sources) > 1:  # what `gym-fetch train` read as two datasets, one for LeRobot
             call([tool("gym-fetch"), "merge", *sources, "--out", str(merged), "--force"], log)
-        cameras = [] if inputs == "pixels" else ["--cameras", "none"]
+        # the images ours learnt from, drawn as its eval env draws them (the env every policy is scored in)
+        cameras = ["--image-quality", args.image_quality] if inputs == "pixels" else ["--cameras", "none"]
         call([tool("gym-fetch"), "export", str(merged) if len(sources) > 1 else sources[0], "--to", "lerobot",
               "--repo-id", f"local/{env_id}-{inputs}", "--out", str(target), "--force", *cameras], log)
         merged.unlink(missing_ok=True)

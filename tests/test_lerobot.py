@@ -154,6 +154,28 @@ def test_videos_are_fresh_renders_within_codec_tolerance(exported: pathlib.Path,
             assert np.mean([psnr(f, g) for f, g in zip(frames[1:], fresh[:-1], strict=True)]) < np.mean(scores)
 
 
+def test_image_quality_draws_the_videos_so_and_the_card_gives_the_env_that_matches(
+        reach_demos: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """`--image-quality fast`: the videos are the fast drawing of the states (nearer it than the full one, which
+    the default draws), so a LeRobot policy can learn from the images a camera policy learnt from; the dataset
+    card gives the lerobot-eval env flags that draw them so."""
+    out = tmp_path / "ds"
+    assert export(reach_demos, out, "--cameras", "front", "--image-size", str(SIZE), "--image-quality", "fast") == 0
+    with open_dataset(reach_demos) as ds:
+        states = np.concatenate([ds.demo(n)["states"][:-1] for n in ds.demo_names])
+        env_id, env_kwargs = ds.env_id, ds.env_kwargs
+    frames, _ = read_video(out / "videos/observation.images.front/chunk-000/file-000.mp4")
+    scores = {}
+    for quality in ("fast", "full"):
+        with StateRenderer(env_id, env_kwargs, SIZE, SIZE, quality) as renderer:
+            fresh = [renderer.frame(s, "front") for s in states]
+        scores[quality] = np.mean([psnr(f, g) for f, g in zip(frames, fresh, strict=True)])
+    assert scores["fast"] > 30 and scores["fast"] > scores["full"] + 3, scores
+    card = (out / "README.md").read_text()
+    assert (f"lerobot-eval --env.type=fetch --env.task={env_id} --env.cameras=front --env.image_size={SIZE} "
+            "--env.image_quality=fast`") in card, card
+
+
 def test_no_cameras_writes_no_video(reach_demos: pathlib.Path, tmp_path: pathlib.Path) -> None:
     assert export(reach_demos, tmp_path / "ds", "--cameras", "none") == 0
     info = json.loads((tmp_path / "ds/meta/info.json").read_text())
@@ -167,6 +189,7 @@ def test_no_cameras_writes_no_video(reach_demos: pathlib.Path, tmp_path: pathlib
     (["--cameras", "front,ceiling"], "unknown camera 'ceiling'; known: "),
     (["--cameras", "front,front"], "--cameras names front more than once"),
     (["--image-size", "63"], "--image-size must be an even number"),
+    (["--image-quality", "nice"], "--image-quality 'nice': choose one of fast, full"),
     (["--dataset-id", "x/y-v0"], "--dataset-id is for --to minari"),
     (["--demos", "nonesuch"], "unknown demo selection 'nonesuch'"),
 ])
@@ -187,6 +210,9 @@ def test_missing_repo_id_and_lerobot_flags_elsewhere(reach_demos: pathlib.Path, 
     assert "--to lerobot needs --repo-id NAME" in capsys.readouterr().err
     assert main(["export", str(reach_demos), "--to", "npz", "--out", str(tmp_path / "n"), "--fps", "25"]) == 2
     assert "--fps is for --to lerobot" in capsys.readouterr().err
+    assert main(["export", str(reach_demos), "--to", "npz", "--out", str(tmp_path / "n"),
+                 "--image-quality", "fast"]) == 2
+    assert "--image-quality is for --to lerobot" in capsys.readouterr().err
 
 
 def test_an_existing_dataset_is_kept_unless_force(exported: pathlib.Path, reach_demos: pathlib.Path,

@@ -8,6 +8,7 @@ import argparse
 from fetch.commands import flags
 from fetch.dataset.exports.exporters import EXPORTERS
 from fetch.dataset.reader import FILE_HELP
+from fetch.rendering import IMAGE_QUALITIES
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -28,6 +29,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
                         "front,wrist; none: no video)")
     p.add_argument("--image-size", type=int, default=None, metavar="PX",
                    help="lerobot: video width and height (default: the recorded images', else 128)")
+    p.add_argument("--image-quality", default=None, metavar="|".join(IMAGE_QUALITIES),
+                   help="lerobot: how the videos are drawn (default full, as the viewer shows the scene and the "
+                        "LeRobot env draws unless told; fast: as `generate --cameras` and a camera policy draw them "
+                        "unless told, for a LeRobot policy to learn from the images such a policy learnt from)")
     p.add_argument("--fps", type=float, default=None, help="lerobot: frames per second (the control rate, 25)")
     p.add_argument("--demos", default="successful", metavar="WHICH",
                    help="successful (default), all, or a mask of the file (train, valid, failed)")

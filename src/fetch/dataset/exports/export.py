@@ -351,12 +351,15 @@ def export_npz(ds_path: str | os.PathLike[str], out_dir: str | os.PathLike[str],
 
 def export_lerobot(ds_path: str | os.PathLike[str], repo_id: str, out: str | os.PathLike[str] | None = None, *,
                    demos: str = "successful", cameras: list[str] | None = None, image_size: int | None = None,
-                   fps: float | None = None, workers: int | None = None, force: bool = False) -> Exported:
+                   image_quality: str | None = None, fps: float | None = None, workers: int | None = None,
+                   force: bool = False) -> Exported:
     """Write the selected demos as the LeRobotDataset v3.0 `repo_id` in `out` (default: where LeRobot looks
     for it, $HF_LEROBOT_HOME/<repo_id>), with videos of `cameras` (default: the recorded ones, else front
-    and wrist) rendered from the saved states at `image_size` (default: the recorded size, else 128) pixels."""
+    and wrist) rendered from the saved states at `image_size` (default: the recorded size, else 128) pixels,
+    drawn at `image_quality` (default `lerobot.IMAGE_QUALITY`, as the LeRobot env draws unless told)."""
     from fetch.dataset.exports import lerobot, lerobot_writer
     from fetch.dataset.replay.render_obs import default_workers
+    from fetch.rendering import check_image_quality
 
     lerobot.check_repo_id(repo_id)
     with open_dataset(ds_path) as ds:
@@ -364,10 +367,11 @@ def export_lerobot(ds_path: str | os.PathLike[str], repo_id: str, out: str | os.
         chosen = select_demos(ds, demos)
         cameras = list(ds.layout.cameras or ("front", "wrist")) if cameras is None else cameras
         image_size = image_size or ds.layout.image_size or 128
+        quality = check_image_quality(image_quality or lerobot.IMAGE_QUALITY, "--image-quality")
         rate = lerobot.check_export(ds.env_id, ds.env_kwargs, cameras, image_size, fps)
         target = pathlib.Path(out) if out is not None else lerobot.lerobot_home() / repo_id
         require_apart(target, [ds_path])
         written = lerobot_writer.write_lerobot(ds, chosen, target, repo_id, cameras=cameras,
-                                               image_size=image_size, fps=rate, force=force,
+                                               image_size=image_size, image_quality=quality, fps=rate, force=force,
                                                workers=min(workers or default_workers(), len(chosen)))
     return Exported(path=written.path, demos=tuple(chosen), steps=written.frames)

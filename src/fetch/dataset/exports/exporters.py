@@ -38,6 +38,8 @@ class ExportRequest:
     """lerobot: cameras to render as videos, comma-separated ("none": no video)."""
     image_size: int | None = None
     """lerobot: video width and height [px]."""
+    image_quality: str | None = None
+    """lerobot: how the videos are drawn (`rendering.IMAGE_QUALITIES`)."""
     fps: float | None = None
     """lerobot: frames per second."""
     author: str | None = None
@@ -87,7 +89,8 @@ def _lerobot(request: ExportRequest) -> str:
     assert request.repo_id is not None  # needed: `export` checked
     cameras = None if request.cameras is None else [c for c in request.cameras.split(",") if c and c != "none"]
     done = export_lerobot(request.file, request.repo_id, request.out, demos=request.demos, cameras=cameras,
-                          image_size=request.image_size, fps=request.fps, force=request.force)
+                          image_size=request.image_size, image_quality=request.image_quality, fps=request.fps,
+                          force=request.force)
     return f"wrote {len(done.demos)} demo(s), {done.steps} frames, as LeRobotDataset {request.repo_id} in {done.path}"
 
 
@@ -101,7 +104,7 @@ EXPORTERS: tuple[Exporter, ...] = (
              needs={"out": "--out DIR, the directory for the files"},
              where=lambda: "--to npz writes into --out DIR", run=_npz),
     Exporter("lerobot", "a LeRobotDataset v3.0 (parquet + mp4)",
-             reads=("repo_id", "out", "cameras", "image_size", "fps"),
+             reads=("repo_id", "out", "cameras", "image_size", "image_quality", "fps"),
              needs={"repo_id": "--repo-id NAME (namespace/name, e.g. me/fetch_drawer_open)"},
              where=lambda: "--to lerobot names the dataset with --repo-id", run=_lerobot),
 )

@@ -125,8 +125,10 @@ class _Video:
 
 
 def write_lerobot(ds: Dataset, chosen: dict[str, dict[str, Any]], target: pathlib.Path, repo_id: str, *,
-                  cameras: Sequence[str], image_size: int, fps: int, workers: int = 1, force: bool = False) -> Written:
-    """Write the `chosen` demos of `ds` (name -> attributes, in order) as a LeRobotDataset v3.0 at `target`.
+                  cameras: Sequence[str], image_size: int, fps: int, workers: int = 1, force: bool = False,
+                  image_quality: str = lerobot.IMAGE_QUALITY) -> Written:
+    """Write the `chosen` demos of `ds` (name -> attributes, in order) as a LeRobotDataset v3.0 at `target`, the
+    videos drawn at `image_quality`.
 
     The dataset is built in a hidden directory beside `target` and renamed to it once complete; a
     replaced dataset (`force`) is removed only after that. Call `check_export` first for the arguments.
@@ -136,7 +138,8 @@ def write_lerobot(ds: Dataset, chosen: dict[str, dict[str, Any]], target: pathli
     pa, pq, av = _imports()
     try:
         with replacing_dir(pathlib.Path(target), force) as building:
-            written = _write(pa, pq, av, ds, chosen, building, repo_id, cameras, image_size, fps, workers)
+            written = _write(pa, pq, av, ds, chosen, building, repo_id, cameras, image_size, image_quality, fps,
+                             workers)
     except OSError as e:  # pyarrow's and PyAV's messages say it twice, or on several lines
         if e.errno not in NO_ROOM:
             raise
@@ -145,7 +148,7 @@ def write_lerobot(ds: Dataset, chosen: dict[str, dict[str, Any]], target: pathli
 
 
 def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, Any]], root: pathlib.Path,
-           repo_id: str, cameras: Sequence[str], size: int, fps: int, workers: int) -> Written:
+           repo_id: str, cameras: Sequence[str], size: int, quality: str, fps: int, workers: int) -> Written:
     import gymnasium as gym
 
     import fetch  # noqa: F401  (registers the ids)
@@ -167,7 +170,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
     sampled = 0
     frames = 0
     try:
-        rendered = _rendered(ds, names, cameras, size, workers)
+        rendered = _rendered(ds, names, cameras, size, quality, workers)
         for episode, (name, images) in enumerate(progress(zip(names, rendered, strict=True), len(names),
                                                           "export lerobot")):
             columns = lerobot.frame_columns(ds.arrays(name), episode, frames, 0, fps, corrected, state)
@@ -214,7 +217,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
     stats.update({video_key(c): lerobot.image_stats(pixels[c], sampled) for c in cameras})
     info = lerobot.features(obs_layout, cameras, size, _video_info(av, root, cameras, fps), corrected)
     _write_meta(pa, pq, root, episodes, task, stats, info, frames, fps, cameras)
-    _write_card(root, repo_id, ds, len(episodes), frames, task)
+    _write_card(root, repo_id, ds, len(episodes), frames, task, cameras, size, quality)
     return Written(root, len(episodes), frames, sum(v.opened for v in videos.values()))
 
 
@@ -258,28 +261,40 @@ def _write_meta(pa: Any, pq: Any, root: pathlib.Path, episodes: list[dict[str, A
     (meta / "info.json").write_text(json.dumps(info, indent=4))
 
 
-def _write_card(root: pathlib.Path, repo_id: str, ds: Dataset, episodes: int, frames: int, task: str) -> None:
-    """A short README.md (the Hub's dataset card) saying what the data is and how to load it."""
+def _write_card(root: pathlib.Path, repo_id: str, ds: Dataset, episodes: int, frames: int, task: str,
+                cameras: Sequence[str], size: int, quality: str) -> None:
+    """A short README.md (the Hub's dataset card) saying what the data is, how to load it, and the env flags
+    that give a policy learnt on it the same observations in `lerobot-eval` (the plugin's)."""
+    env = f"--env.type=fetch --env.task={ds.env_id} --env.cameras={','.join(cameras) or 'none'}"
+    if cameras:
+        env += f" --env.image_size={size} --env.image_quality={quality}"
+    if ds.env_kwargs.get("hide_goal"):
+        env += " --env.hide_goal=true"
+    drawn = (f"Videos of {', '.join(cameras)}, {size} x {size} px, drawn at image quality `{quality}` from the saved "
+             "states. " if cameras else "")
     (root / "README.md").write_text(
         "---\nlicense: mit\ntask_categories:\n- robotics\ntags:\n- LeRobot\n- gym-fetch-v2\nconfigs:\n"
         "- config_name: default\n  data_files: data/*/*.parquet\n---\n\n"
         f"# {repo_id}\n\n{episodes} `{ds.env_id}` demonstrations ({frames} frames at 25 fps), task \"{task}\", "
         f"exported by gym-fetch-v2 from `{ds.path.name}` (LeRobotDataset {lerobot.CODEBASE_VERSION}).\n\n"
         "```python\nfrom lerobot.datasets.lerobot_dataset import LeRobotDataset\n\n"
-        f"dataset = LeRobotDataset(\"{repo_id}\", root=\"<this directory>\")\n```\n")
+        f"dataset = LeRobotDataset(\"{repo_id}\", root=\"<this directory>\")\n```\n\n"
+        f"{drawn}A policy learnt on it sees the same observations in `lerobot-eval {env}` (the `lerobot_env_fetch` "
+        "plugin of gym-fetch-v2).\n")
 
 
 
 
-def _rendered(ds: Dataset, names: Sequence[str], cameras: Sequence[str], size: int,
+def _rendered(ds: Dataset, names: Sequence[str], cameras: Sequence[str], size: int, quality: str,
               workers: int) -> Iterator[dict[str, np.ndarray]]:
-    """Each demo's frames per camera ((T, size, size, 3) uint8: the states before each step), in order."""
+    """Each demo's frames per camera ((T, size, size, 3) uint8: the states before each step, drawn at `quality`),
+    in order."""
     if not cameras:
         yield from ({} for _ in names)
         return
     from fetch.dataset.render.render_ahead import render_ahead
 
     jobs = ((name, ds.demo(name)["states"][:-1], episode_seed(ds.attrs(name))) for name in names)
-    for images in render_ahead(ds.env_id, ds.env_kwargs, size, workers, jobs, cameras, lerobot.IMAGE_QUALITY):
+    for images in render_ahead(ds.env_id, ds.env_kwargs, size, workers, jobs, cameras, quality):
         assert images is not None  # every demo has states
         yield images
