@@ -17,6 +17,7 @@ from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 import fetch.learn
+from fetch.dataset.exports.lerobot import env_flags
 from fetch.errors import FetchError
 from fetch.learn import checkpoint
 from fetch.learn.evaluate import EVAL_SEED_START
@@ -69,12 +70,8 @@ def export_policy(run: str | os.PathLike[str], out: str | os.PathLike[str]) -> G
 def eval_command(out: str | os.PathLike[str], config: GymFetchConfig, episodes: int = 100) -> list[str]:
     """The lerobot-eval command that evaluates the exported policy as `gym-fetch eval` does: its env, its
     episode length, `gym-fetch eval`'s first seed."""
-    command = ["lerobot-eval", f"--policy.path={out}", "--env.type=fetch", f"--env.task={config.env_id}",
-               f"--env.cameras={','.join(config.cameras) or 'none'}"]
-    if config.cameras:
-        command += [f"--env.image_size={config.image_size}", f"--env.image_quality={config.image_quality}"]
-    if config.hide_goal:
-        command.append("--env.hide_goal=true")
+    command = ["lerobot-eval", f"--policy.path={out}",
+               *env_flags(config.env_id, config.cameras, config.image_size, config.image_quality, config.hide_goal)]
     if config.horizon != registered_horizon(config.env_id):
         command.append(f"--env.episode_length={config.horizon}")
     return command + [f"--eval.n_episodes={episodes}", f"--seed={EVAL_SEED_START}", "--policy.device=cpu"]

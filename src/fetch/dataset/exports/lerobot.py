@@ -74,6 +74,17 @@ def video_key(camera: str) -> str:
     return f"observation.images.{camera}"
 
 
+def env_flags(env_id: str, cameras: Sequence[str], image_size: int, image_quality: str, hide_goal: bool) -> list[str]:
+    """The `lerobot-eval` flags of the LeRobot env (plugins/lerobot_env_fetch) whose observations are these: the
+    task, the cameras and, with cameras, their size and drawing, the goal's marker hidden or not."""
+    flags = ["--env.type=fetch", f"--env.task={env_id}", f"--env.cameras={','.join(cameras) or 'none'}"]
+    if cameras:
+        flags += [f"--env.image_size={image_size}", f"--env.image_quality={image_quality}"]
+    if hide_goal:
+        flags.append("--env.hide_goal=true")
+    return flags
+
+
 # -- the layout ------------------------------------------------------------------------------------
 
 ROBOT_PARTS = ("grip_pos", "gripper_state", "grip_velp", "gripper_vel")

@@ -265,11 +265,7 @@ def _write_card(root: pathlib.Path, repo_id: str, ds: Dataset, episodes: int, fr
                 cameras: Sequence[str], size: int, quality: str) -> None:
     """A short README.md (the Hub's dataset card) saying what the data is, how to load it, and the env flags
     that give a policy learnt on it the same observations in `lerobot-eval` (the plugin's)."""
-    env = f"--env.type=fetch --env.task={ds.env_id} --env.cameras={','.join(cameras) or 'none'}"
-    if cameras:
-        env += f" --env.image_size={size} --env.image_quality={quality}"
-    if ds.env_kwargs.get("hide_goal"):
-        env += " --env.hide_goal=true"
+    env = " ".join(lerobot.env_flags(ds.env_id, cameras, size, quality, bool(ds.env_kwargs.get("hide_goal"))))
     drawn = (f"Videos of {', '.join(cameras)}, {size} x {size} px, drawn at image quality `{quality}` from the saved "
              "states. " if cameras else "")
     (root / "README.md").write_text(
