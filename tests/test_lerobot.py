@@ -4,6 +4,7 @@ tests/test_lerobot_consumer.py loads them with lerobot itself), exact values, at
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 import shutil
 import signal
@@ -174,6 +175,56 @@ def test_image_quality_draws_the_videos_so_and_the_card_gives_the_env_that_match
     card = (out / "README.md").read_text()
     assert (f"lerobot-eval --env.type=fetch --env.task={env_id} --env.cameras=front --env.image_size={SIZE} "
             "--env.image_quality=fast`") in card, card
+
+
+@pytest.fixture(scope="module")
+def reach_with_images(reach_demos: pathlib.Path, tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    """The Reach demos with their front camera's images recorded (64 px, fast), as `collect --cameras` keeps them."""
+    copy = tmp_path_factory.mktemp("images") / "demos"
+    shutil.copytree(reach_demos, copy)
+    assert main(["render-obs", str(copy), "--camera", "front", "--size", str(SIZE), "--quality", "fast"]) == 0
+    return copy
+
+
+def _export_without_gl(src: pathlib.Path, out: pathlib.Path, *extra: str) -> subprocess.CompletedProcess[str]:
+    """The export in a process where MuJoCo cannot render (`MUJOCO_GL=disable`)."""
+    argv = [sys.executable, "-m", "fetch.cli", "export", str(src), "--to", "lerobot", "--repo-id", "test/fetch",
+            "--out", str(out), *extra]
+    return subprocess.run(argv, capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "MUJOCO_GL": "disable"})
+
+
+def test_recorded_images_are_the_videos_and_need_no_renderer(reach_with_images: pathlib.Path,
+                                                              tmp_path: pathlib.Path) -> None:
+    """Recorded at the size and quality asked for, a dataset's own images are the videos: read, not drawn again
+    (the export runs where nothing can render, and says where its frames came from); asked for another size,
+    the export draws them, which that process cannot."""
+    out = tmp_path / "ds"
+    done = _export_without_gl(reach_with_images, out, "--cameras", "front", "--image-quality", "fast")
+    assert done.returncode == 0, done.stderr
+    assert f"videos of the dataset's own {SIZE} px fast images" in done.stdout, done.stdout
+    with open_dataset(reach_with_images) as ds:
+        stored = np.concatenate([ds.demo(n)["obs/front_image"][()] for n in ds.demo_names])
+    frames, _ = read_video(out / "videos/observation.images.front/chunk-000/file-000.mp4")
+    assert len(frames) == len(stored)
+    scores = [psnr(f, g) for f, g in zip(frames, stored, strict=True)]
+    assert min(scores) > 30, min(scores)
+    assert np.mean([psnr(f, g) for f, g in zip(frames[1:], stored[:-1], strict=True)]) < np.mean(scores)
+    other = _export_without_gl(reach_with_images, tmp_path / "other", "--cameras", "front", "--image-size", "32",
+                               "--image-quality", "fast")
+    assert other.returncode != 0 and not (tmp_path / "other").exists(), other.stdout
+
+
+def test_images_recorded_otherwise_are_drawn_from_the_states(reach_with_images: pathlib.Path,
+                                                             tmp_path: pathlib.Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """At another quality (the default `full`), or for a camera the dataset did not record, the videos are
+    drawn from the saved states, and the line says so."""
+    for extra in (["--cameras", "front"], ["--cameras", "front,wrist", "--image-quality", "fast"]):
+        out = tmp_path / "-".join(extra).replace(",", "_")
+        assert export(reach_with_images, out, *extra) == 0
+        quality = extra[-1] if "--image-quality" in extra else "full"
+        assert f"videos of {SIZE} px {quality} images drawn from the saved states" in capsys.readouterr().out
 
 
 def test_no_cameras_writes_no_video(reach_demos: pathlib.Path, tmp_path: pathlib.Path) -> None:

@@ -100,6 +100,11 @@ OPTIONAL_FIELDS: tuple[Field, ...] = (
 """Arrays some demos hold; checked like the others when present."""
 
 
+def is_image(path: str) -> bool:
+    """Whether a demo's array at `path` (e.g. `obs/front_image`) is a camera's images."""
+    return path.endswith(image_key(""))
+
+
 def meant_actions(arrays: Mapping[str, Any]) -> np.ndarray:
     """A demo's (T, 4) actions to learn from: `expert_actions` where recorded, else `actions` (the
     device meant what it sent). Every export carries them beside the applied `actions`."""

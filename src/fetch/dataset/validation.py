@@ -93,10 +93,6 @@ Visit = Callable[[str, dict[str, Any], dict[str, np.ndarray]], None]
 """Called with a sound demo's name, attributes and arrays (every array but the images `Keep` leaves out)."""
 
 
-def _is_image(path: str) -> bool:
-    return path.endswith(schema.image_key(""))
-
-
 def _demo_problems(ds: Dataset, name: str, images: bool = True, keep: Keep | None = None,
                    visit: Visit | None = None) -> tuple[list[str], int | None, dict[str, Any]]:
     """What is wrong with one demo (each problem starts with its name), its steps if they are known and its
@@ -120,7 +116,7 @@ def _demo_problems(ds: Dataset, name: str, images: bool = True, keep: Keep | Non
 
         group.visititems(found)
         # Checked as read (a numpy array's [()] is itself); images stay on disk unless the caller wants them.
-        arrays: dict[str, Any] = {p: node if _is_image(p) and (visit is None or keep is None or not keep(p))
+        arrays: dict[str, Any] = {p: node if schema.is_image(p) and (visit is None or keep is None or not keep(p))
                                   else node[()] for p, node in nodes.items()}
         problems = _content_problems(ds, name, attrs, arrays, t, images)
     except READ_ERRORS as e:

@@ -37,11 +37,13 @@ all (the metadata, the file's headers), with room to spare."""
 
 @dataclasses.dataclass(frozen=True)
 class Exported:
-    """What an export wrote: where, the source demos it holds (in order), and their steps."""
+    """What an export wrote: where, the source demos it holds (in order), their steps, and where its videos'
+    frames came from (LeRobot: `videos`)."""
 
     path: pathlib.Path
     demos: tuple[str, ...]
     steps: int
+    videos: str = ""
 
 
 def select_demos(ds: Dataset, which: str) -> dict[str, dict[str, Any]]:
@@ -355,8 +357,9 @@ def export_lerobot(ds_path: str | os.PathLike[str], repo_id: str, out: str | os.
                    force: bool = False) -> Exported:
     """Write the selected demos as the LeRobotDataset v3.0 `repo_id` in `out` (default: where LeRobot looks
     for it, $HF_LEROBOT_HOME/<repo_id>), with videos of `cameras` (default: the recorded ones, else front
-    and wrist) rendered from the saved states at `image_size` (default: the recorded size, else 128) pixels,
-    drawn at `image_quality` (default `lerobot.IMAGE_QUALITY`, as the LeRobot env draws unless told)."""
+    and wrist) at `image_size` (default: the recorded size, else 128) pixels, drawn at `image_quality` (default
+    `lerobot.IMAGE_QUALITY`, as the LeRobot env draws unless told): the dataset's own images where it recorded
+    those cameras at that size and quality, else rendered from the saved states."""
     from fetch.dataset.exports import lerobot, lerobot_writer
     from fetch.dataset.replay.render_obs import default_workers
     from fetch.rendering import check_image_quality
@@ -374,4 +377,10 @@ def export_lerobot(ds_path: str | os.PathLike[str], repo_id: str, out: str | os.
         written = lerobot_writer.write_lerobot(ds, chosen, target, repo_id, cameras=cameras,
                                                image_size=image_size, image_quality=quality, fps=rate, force=force,
                                                workers=min(workers or default_workers(), len(chosen)))
-    return Exported(path=written.path, demos=tuple(chosen), steps=written.frames)
+    if not cameras:
+        videos = ""
+    elif written.stored_images:
+        videos = f"the dataset's own {image_size} px {quality} images"
+    else:
+        videos = f"{image_size} px {quality} images drawn from the saved states"
+    return Exported(path=written.path, demos=tuple(chosen), steps=written.frames, videos=videos)

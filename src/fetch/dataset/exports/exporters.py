@@ -91,7 +91,9 @@ def _lerobot(request: ExportRequest) -> str:
     done = export_lerobot(request.file, request.repo_id, request.out, demos=request.demos, cameras=cameras,
                           image_size=request.image_size, image_quality=request.image_quality, fps=request.fps,
                           force=request.force)
-    return f"wrote {len(done.demos)} demo(s), {done.steps} frames, as LeRobotDataset {request.repo_id} in {done.path}"
+    videos = f"; videos of {done.videos}" if done.videos else ""
+    return (f"wrote {len(done.demos)} demo(s), {done.steps} frames, as LeRobotDataset {request.repo_id} in "
+            f"{done.path}{videos}")
 
 
 EXPORTERS: tuple[Exporter, ...] = (

@@ -6,7 +6,7 @@ one row per frame, `videos/<key>/chunk-000/file-000.mp4` the frames of every epi
 statistics), `meta/tasks.parquet` the task strings, `meta/stats.json` and `meta/info.json`. A frame is
 one control step: the observation before step t, the action of step t and what step t gave
 (`next.reward`, `next.done`, `next.success`); the state after the last step has no frame. Images are
-rendered from the saved states.
+the dataset's own where it recorded them as asked (camera, size, quality), else rendered from the saved states.
 """
 
 from __future__ import annotations

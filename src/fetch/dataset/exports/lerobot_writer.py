@@ -21,7 +21,7 @@ from fetch._durable import NO_ROOM, why
 from fetch.dataset.exports import lerobot
 from fetch.dataset.exports.lerobot import video_key
 from fetch.dataset.reader import Dataset
-from fetch.dataset.schema import episode_seed
+from fetch.dataset.schema import episode_seed, image_key, is_image
 from fetch.errors import FetchError
 
 
@@ -33,6 +33,8 @@ class Written:
     episodes: int
     frames: int
     videos: int
+    stored_images: bool
+    """Whether the videos show the dataset's own images (`uses_stored_images`) rather than ones drawn anew."""
 
 
 def _imports() -> tuple[Any, Any, Any]:
@@ -161,6 +163,8 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
     state = lerobot.state_index(lerobot.state_layout(obs_layout, cameras))
     names = list(chosen)
     corrected = any("intervention" in ds.demo(name) for name in names)
+    stored = uses_stored_images(ds, cameras, size, quality)
+    wanted = {f"obs/{image_key(c)}" for c in cameras} if stored else set()
     videos = {camera: _Video(av, root, video_key(camera), fps, size) for camera in cameras}
     data_files = _RollingFiles(root, lerobot.DATA_PATH, lerobot.DATA_FILE_MB)
     writer: Any = None
@@ -170,10 +174,14 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
     sampled = 0
     frames = 0
     try:
-        rendered = _rendered(ds, names, cameras, size, quality, workers)
+        rendered = ({} for _ in names) if stored else _rendered(ds, names, cameras, size, quality, workers)
         for episode, (name, images) in enumerate(progress(zip(names, rendered, strict=True), len(names),
                                                           "export lerobot")):
-            columns = lerobot.frame_columns(ds.arrays(name), episode, frames, 0, fps, corrected, state)
+            # Of a demo's images only those the videos take are read: they are most of its bytes.
+            arrays = ds.arrays(name, keep=lambda path: not is_image(path) or path in wanted)
+            if stored:
+                images = {c: arrays[f"obs/{image_key(c)}"] for c in cameras}
+            columns = lerobot.frame_columns(arrays, episode, frames, 0, fps, corrected, state)
             length = len(columns["index"])
             if writer is not None and data_files.full():
                 writer.close()
@@ -218,7 +226,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
     info = lerobot.features(obs_layout, cameras, size, _video_info(av, root, cameras, fps), corrected)
     _write_meta(pa, pq, root, episodes, task, stats, info, frames, fps, cameras)
     _write_card(root, repo_id, ds, len(episodes), frames, task, cameras, size, quality)
-    return Written(root, len(episodes), frames, sum(v.opened for v in videos.values()))
+    return Written(root, len(episodes), frames, sum(v.opened for v in videos.values()), stored)
 
 
 def _video_info(av: Any, root: pathlib.Path, cameras: Sequence[str], fps: int) -> dict[str, Any]:
@@ -279,6 +287,17 @@ def _write_card(root: pathlib.Path, repo_id: str, ds: Dataset, episodes: int, fr
         "plugin of gym-fetch-v2).\n")
 
 
+
+
+def uses_stored_images(ds: Dataset, cameras: Sequence[str], size: int, quality: str) -> bool:
+    """Whether the videos can be the dataset's own images, read rather than drawn again: it recorded every one
+    of `cameras` at `size`, drawn at `quality`. The states would draw the same images (replay is exact);
+    reading them is several times faster than rendering, and they are the very images a policy trained on the
+    dataset learnt from. `require_valid` has made sure each demo holds them, one (size, size, 3) uint8 image a
+    step."""
+    layout = ds.layout
+    return (bool(cameras) and set(cameras) <= set(layout.cameras) and layout.image_size == size
+            and layout.image_quality == quality)
 
 
 def _rendered(ds: Dataset, names: Sequence[str], cameras: Sequence[str], size: int, quality: str,
