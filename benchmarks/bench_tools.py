@@ -1,4 +1,4 @@
-"""Benchmark the dataset tools: render-obs frames/s by worker count, video, merge.
+"""Benchmark the dataset tools: render-obs frames/s by worker count, the LeRobot export, video, merge.
 
     python -m benchmarks.bench_tools [--env Drawer-open-v2] [--demos 12] [--size 84]
 
@@ -51,6 +51,16 @@ def run(env_id: str, demos: int, size: int) -> None:
                          f"{report.seconds:.2f} s for {report.frames} frames"))
         if cores > 1:
             rows.append((f"render-obs speedup, {cores} workers vs 1", f"{seconds[1] / seconds[cores]:.2f}x", ""))
+        # The same LeRobot dataset twice: from a dataset without images (drawn from the states, `cores`
+        # workers) and from the copy render-obs gave the front camera's images (read from the file).
+        exported = {}
+        for label, dataset in (("drawn", source), ("read", root / f"w{cores}")):
+            exported[label] = timed(["export", str(dataset), "--to", "lerobot", "--repo-id", "bench/tools",
+                                     "--out", str(root / f"lerobot-{label}"), "--cameras", "front",
+                                     "--image-size", str(size), "--image-quality", "fast"])
+            rows.append((f"export --to lerobot, front {size}px, images {label}",
+                         f"{steps / exported[label]:.0f} frames/s", f"{exported[label]:.2f} s for {steps} frames"))
+        rows.append(("export, images read vs drawn", f"{exported['drawn'] / exported['read']:.2f}x", ""))
         video = root / "demo.mp4"
         t = timed(["replay", str(source), "--demo", "0", "--video", str(video), "--size", "480"])
         with h5py.File(source / "demos.hdf5", "r") as f:
