@@ -80,10 +80,10 @@ def run(env_id: str, demos: int, size: int) -> None:
         shutil.rmtree(root, ignore_errors=True)
     print(f"\n{machine_line('h5py')}")
     print(f"{env_id}: {demos} demos, {steps} steps, {frames} states; MUJOCO_GL={os.environ.get('MUJOCO_GL')}")
-    print(f"| {'measure':44} | {'result':>14} | {'detail':30} |")
-    print(f"|{'-' * 46}|{'-' * 16}|{'-' * 32}|")
+    print(f"| {'measure':46} | {'result':>14} | {'detail':30} |")
+    print(f"|{'-' * 48}|{'-' * 16}|{'-' * 32}|")
     for label, result, detail in rows:
-        print(f"| {label:44} | {result:>14} | {detail:30} |")
+        print(f"| {label:46} | {result:>14} | {detail:30} |")
 
 
 if __name__ == "__main__":
