@@ -203,6 +203,7 @@ def test_recorded_images_are_the_videos_and_need_no_renderer(reach_with_images: 
     done = _export_without_gl(reach_with_images, out, "--cameras", "front", "--image-quality", "fast")
     assert done.returncode == 0, done.stderr
     assert f"videos of the dataset's own {SIZE} px fast images" in done.stdout, done.stdout
+    assert "drawn at image quality `fast`: the dataset's own images." in (out / "README.md").read_text()
     with open_dataset(reach_with_images) as ds:
         stored = np.concatenate([ds.demo(n)["obs/front_image"][()] for n in ds.demo_names])
     frames, _ = read_video(out / "videos/observation.images.front/chunk-000/file-000.mp4")

@@ -225,7 +225,7 @@ def _write(pa: Any, pq: Any, av: Any, ds: Dataset, chosen: dict[str, dict[str, A
     stats.update({video_key(c): lerobot.image_stats(pixels[c], sampled) for c in cameras})
     info = lerobot.features(obs_layout, cameras, size, _video_info(av, root, cameras, fps), corrected)
     _write_meta(pa, pq, root, episodes, task, stats, info, frames, fps, cameras)
-    _write_card(root, repo_id, ds, len(episodes), frames, task, cameras, size, quality)
+    _write_card(root, repo_id, ds, len(episodes), frames, task, cameras, size, quality, stored)
     return Written(root, len(episodes), frames, sum(v.opened for v in videos.values()), stored)
 
 
@@ -270,12 +270,14 @@ def _write_meta(pa: Any, pq: Any, root: pathlib.Path, episodes: list[dict[str, A
 
 
 def _write_card(root: pathlib.Path, repo_id: str, ds: Dataset, episodes: int, frames: int, task: str,
-                cameras: Sequence[str], size: int, quality: str) -> None:
-    """A short README.md (the Hub's dataset card) saying what the data is, how to load it, and the env flags
-    that give a policy learnt on it the same observations in `lerobot-eval` (the plugin's)."""
+                cameras: Sequence[str], size: int, quality: str, stored: bool) -> None:
+    """A short README.md (the Hub's dataset card) saying what the data is (its videos: the `stored` images of the
+    dataset, or drawn from its states), how to load it, and the env flags that give a policy learnt on it the same
+    observations in `lerobot-eval` (the plugin's)."""
     env = " ".join(lerobot.env_flags(ds.env_id, cameras, size, quality, bool(ds.env_kwargs.get("hide_goal"))))
-    drawn = (f"Videos of {', '.join(cameras)}, {size} x {size} px, drawn at image quality `{quality}` from the saved "
-             "states. " if cameras else "")
+    source = "the dataset's own images" if stored else "from the saved states"
+    drawn = (f"Videos of {', '.join(cameras)}, {size} x {size} px, drawn at image quality `{quality}`: {source}. "
+             if cameras else "")
     (root / "README.md").write_text(
         "---\nlicense: mit\ntask_categories:\n- robotics\ntags:\n- LeRobot\n- gym-fetch-v2\nconfigs:\n"
         "- config_name: default\n  data_files: data/*/*.parquet\n---\n\n"
